@@ -1,0 +1,144 @@
+!> Thin f2py door: plain scalars and arrays only. Every routine returns a
+!> status code and message instead of stopping (a stop would end Python).
+module api
+  use kinds, only: dp
+  use errors, only: status_t
+  use api_state, only: the_sim
+  use engine, only: sim_t, sim_load, sim_execute, sim_forces, sim_step, sim_energy
+  use protocol, only: piston_at
+  use pair_forces, only: dipole_kernel
+  implicit none
+  private
+  public :: run_scene, load_scene, n_particles, get_state, set_state, compute_forces, &
+       advance_steps, piston_state, model_groups, energies, kernel, precision_probe
+
+contains
+
+  !> Run a scene exactly as the executable does, writing run directory `outdir`.
+  subroutine run_scene(path, outdir, code, message)
+    character(len=*), intent(in) :: path, outdir
+    integer, intent(out) :: code
+    character(len=1024), intent(out) :: message
+    type(status_t) :: st
+    call sim_execute(path, outdir, .false., st)
+    code = st%code
+    message = st%msg
+  end subroutine run_scene
+
+  !> Load and validate a scene into the in-memory simulation (writes nothing).
+  subroutine load_scene(path, code, message)
+    character(len=*), intent(in) :: path
+    integer, intent(out) :: code
+    character(len=1024), intent(out) :: message
+    type(status_t) :: st
+    type(sim_t) :: fresh
+    the_sim = fresh
+    call sim_load(the_sim, path, st)
+    code = st%code
+    message = st%msg
+  end subroutine load_scene
+
+  subroutine n_particles(n)
+    integer, intent(out) :: n
+    n = the_sim%s%n
+  end subroutine n_particles
+
+  !> Current state: positions [D1], velocities [D1/T], forces [m1 g], species.
+  subroutine get_state(n, x, y, vx, vy, fx, fy, species, step, t)
+    integer, intent(in) :: n
+    real(dp), intent(out) :: x(n), y(n), vx(n), vy(n), fx(n), fy(n)
+    integer, intent(out) :: species(n)
+    integer, intent(out) :: step
+    real(dp), intent(out) :: t
+    x = the_sim%s%x; y = the_sim%s%y
+    vx = the_sim%s%vx; vy = the_sim%s%vy
+    fx = the_sim%s%fx; fy = the_sim%s%fy
+    species = the_sim%s%species
+    step = int(the_sim%s%step)
+    t = the_sim%s%t
+  end subroutine get_state
+
+  !> Replace positions and velocities (restarts the integrator history).
+  subroutine set_state(n, x, y, vx, vy, code, message)
+    integer, intent(in) :: n
+    real(dp), intent(in) :: x(n), y(n), vx(n), vy(n)
+    integer, intent(out) :: code
+    character(len=1024), intent(out) :: message
+    code = 0
+    message = ''
+    if (n /= the_sim%s%n) then
+      code = 2
+      write(message, '(a,i0,a,i0)') 'set_state: got ', n, ' particles, the scene has ', the_sim%s%n
+      return
+    end if
+    the_sim%s%x = x; the_sim%s%y = y
+    the_sim%s%vx = vx; the_sim%s%vy = vy
+    the_sim%s%xp = x; the_sim%s%yp = y
+    the_sim%s%has_previous = .false.
+  end subroutine set_state
+
+  !> Forces at the current state and time (fx, fy via get_state).
+  subroutine compute_forces(code, message)
+    integer, intent(out) :: code
+    character(len=1024), intent(out) :: message
+    type(status_t) :: st
+    call piston_at(the_sim%p, the_sim%s%t, the_sim%s%piston_h, the_sim%s%phase)
+    call sim_forces(the_sim, .false., st)
+    code = st%code
+    message = st%msg
+  end subroutine compute_forces
+
+  !> Advance nsteps steps in memory (no files).
+  subroutine advance_steps(nsteps, code, message)
+    integer, intent(in) :: nsteps
+    integer, intent(out) :: code
+    character(len=1024), intent(out) :: message
+    type(status_t) :: st
+    integer :: k
+    do k = 1, nsteps
+      call sim_step(the_sim, st)
+      if (st%code /= 0) exit
+    end do
+    code = st%code
+    message = st%msg
+  end subroutine advance_steps
+
+  subroutine piston_state(h, force, phase, n_steps)
+    real(dp), intent(out) :: h, force
+    integer, intent(out) :: phase, n_steps
+    h = the_sim%s%piston_h
+    force = the_sim%s%piston_force
+    phase = the_sim%s%phase
+    n_steps = int(the_sim%p%n_steps)
+  end subroutine piston_state
+
+  !> Dimensionless groups and SI unit scales of the loaded scene.
+  subroutine model_groups(big_f, big_g, k_pair, k_wall, length_m, time_s, force_n)
+    real(dp), intent(out) :: big_f, big_g, k_pair, k_wall, length_m, time_s, force_n
+    big_f = the_sim%m%big_f; big_g = the_sim%m%big_g
+    k_pair = the_sim%m%k_pair; k_wall = the_sim%m%k_wall
+    length_m = the_sim%m%length_unit; time_s = the_sim%m%time_unit
+    force_n = the_sim%m%force_unit
+  end subroutine model_groups
+
+  !> Kinetic, pair, wall and gravitational energy [m1 g D1] of the current state.
+  subroutine energies(ek, ep, ew, eg)
+    real(dp), intent(out) :: ek, ep, ew, eg
+    call sim_energy(the_sim, ek, ep, ew, eg)
+  end subroutine energies
+
+  !> The pair kernel itself: r^-5 and r^-3 for a separation (dx, dy).
+  subroutine kernel(dx, dy, s5, s3)
+    real(dp), intent(in) :: dx, dy
+    real(dp), intent(out) :: s5, s3
+    call dipole_kernel(dx, dy, s5, s3)
+  end subroutine kernel
+
+  !> 1 + 2^-40 survives only in double precision (a check of the f2py kind map).
+  subroutine precision_probe(x, y)
+    real(dp), intent(in) :: x
+    real(dp), intent(out) :: y
+    y = x + 2.0_dp**(-40)
+  end subroutine precision_probe
+
+end module api

@@ -1,0 +1,263 @@
+!> The engine: load a scene, open a run directory, step, finish. Both doors
+!> (the executable and the f2py module) go through sim_execute, so they
+!> produce the same files for the same scene.
+module engine
+  use, intrinsic :: iso_fortran_env, only: output_unit
+  use kinds, only: dp, i8, pi
+  use errors, only: status_t, set_error, exit_numerical, exit_ok, exit_bad_input
+  use scene, only: scene_t, scene_read, scene_validate, scene_write
+  use model, only: model_t, model_build, law_dipole, piston_none, piston_prescribed
+  use state, only: state_t
+  use protocol, only: protocol_t, protocol_build, piston_at, phase_names
+  use initial, only: place_particles
+  use pair_forces, only: pair_forces_all, pair_energy_all
+  use walls, only: wall_forces, wall_energy
+  use friction, only: gravity_force, viscous_friction, dry_friction
+  use integrators, only: estimate_velocity, finish_velocity, advance
+  use observables, only: mean_distance, packing_fraction, kinetic_energy
+  use output, only: output_t, output_open, output_close, output_flush, write_piston, &
+       write_frame, write_distance, write_energy, write_run_json, make_dir
+  implicit none
+  private
+
+  public :: sim_t, sim_load, sim_open_output, sim_forces, sim_step, sim_run, &
+       sim_finish, sim_execute, sim_energy
+
+  type :: sim_t
+    type(scene_t) :: sc
+    type(model_t) :: m
+    type(state_t) :: s
+    type(protocol_t) :: p
+    type(output_t) :: o
+    character(len=:), allocatable :: scene_path
+    logical :: writing = .false.        !< a run directory is open
+    logical :: progress = .false.       !< print progress lines on stdout
+    logical :: need_velocity = .false.  !< some force depends on velocity
+    real(dp) :: area = 0                !< total particle area [D1^2]
+    integer(i8) :: progress_every = 1
+    integer(i8) :: clock0 = 0
+  end type sim_t
+
+contains
+
+  !> Read, validate, build the model and the initial condition. Writes nothing.
+  subroutine sim_load(sim, path, st)
+    type(sim_t), intent(inout) :: sim
+    character(len=*), intent(in) :: path
+    type(status_t), intent(inout) :: st
+    sim%scene_path = trim(path)
+    call scene_read(path, sim%sc, st)
+    if (st%code /= 0) return
+    call scene_validate(sim%sc, path, st)
+    if (st%code /= 0) return
+    call model_build(sim%sc, sim%m)
+    call build_rest(sim, st)
+  end subroutine sim_load
+
+  subroutine build_rest(sim, st)
+    type(sim_t), intent(inout) :: sim
+    type(status_t), intent(inout) :: st
+    real(dp) :: h
+    integer :: phase, k
+    real(dp) :: area
+    area = 0
+    ! area needs species counts: place first with the start height, then build
+    call protocol_build(sim%sc, sim%m, 1.0_dp, sim%p)
+    call place_particles(sim%sc, sim%m, sim%p%h_start, sim%scene_path, sim%s, st)
+    if (st%code /= 0) return
+    do k = 1, sim%s%n
+      area = area + 0.25_dp*pi*sim%m%sp_diam(sim%s%species(k))**2
+    end do
+    sim%area = area
+    call protocol_build(sim%sc, sim%m, area, sim%p)
+    if (sim%m%piston_mode == piston_prescribed .and. sim%p%hf <= 1.0_dp) then
+      call set_error(st, exit_bad_input, sim%scene_path//': &protocol phi_final: gives hf <= 1 D1')
+      return
+    end if
+    if (sim%m%piston_mode == piston_prescribed .and. sim%p%hf >= sim%p%h0) then
+      call set_error(st, exit_bad_input, sim%scene_path//': &protocol phi_final: gives hf >= h0 '// &
+           '(the bed would not be compressed)')
+      return
+    end if
+    sim%need_velocity = sim%m%dry_order > 0 .or. sim%m%viscous_on
+    sim%s%step = 0
+    call piston_at(sim%p, 0.0_dp, h, phase)
+    sim%s%piston_h = h
+    sim%s%phase = phase
+    if (sim%sc%progress_every > 0) then
+      sim%progress_every = sim%sc%progress_every
+    else
+      sim%progress_every = max(1_i8, sim%p%n_steps/200)
+    end if
+  end subroutine build_rest
+
+  !> Create the run directory and its files; write scene.nml and run.json.
+  subroutine sim_open_output(sim, dir, st)
+    type(sim_t), intent(inout) :: sim
+    character(len=*), intent(in) :: dir
+    type(status_t), intent(inout) :: st
+    call make_dir(dir, st)
+    if (st%code /= 0) return
+    call scene_write(trim(dir)//'/scene.nml', sim%sc, st)
+    if (st%code /= 0) return
+    call output_open(sim%o, dir, sim%m, sim%sc%piston_every > 0, sim%sc%frame_every > 0, &
+         sim%sc%distance_every > 0, sim%sc%energy_every > 0, st)
+    if (st%code /= 0) return
+    sim%writing = .true.
+    call system_clock(sim%clock0)
+    call write_run_json(dir, sim%scene_path, 'running', 0, '', sim%s%step, sim%p%n_steps, &
+         sim%s%t, 0.0_dp, sim%m, sim%s%n, st)
+  end subroutine sim_open_output
+
+  !> Forces at the current positions (and velocity estimate). need_fmag also
+  !> fills |magnetic force| per particle. Guards: particle outside the cell.
+  subroutine sim_forces(sim, need_fmag, st)
+    type(sim_t), intent(inout) :: sim
+    logical, intent(in) :: need_fmag
+    type(status_t), intent(inout) :: st
+    integer :: bad
+    character(len=300) :: buf
+    associate (s => sim%s, m => sim%m)
+      s%fx = 0
+      s%fy = 0
+      if (m%dry_order > 0) s%s3 = 0
+      if (m%pair_law == law_dipole) call pair_forces_all(s%n, s%x, s%y, s%mu, s%wsin, &
+           m%k_pair, m%dry_order > 0, s%fx, s%fy, s%s3)
+      call wall_forces(s%n, s%x, s%y, s%mu, m%wall_law, m%k_wall, m%width, m%height, &
+           s%piston_h, m%piston_mode /= piston_none, s%fx, s%fy, s%piston_force, bad)
+      if (bad /= 0) then
+        write(buf, '(a,i0,a,es12.5,a,i0,a,es12.5,a,es12.5,a,es12.5,a)') 'step ', s%step, &
+             ' t = ', s%t, ' T: particle ', bad, ' left the cell or became non-finite (x = ', &
+             s%x(bad), ', y = ', s%y(bad), ' D1; piston at ', s%piston_h, &
+             ' D1): reduce dt or check the scene'
+        call set_error(st, exit_numerical, trim(buf))
+        return
+      end if
+      if (need_fmag) s%fmag = sqrt(s%fx**2 + s%fy**2)
+      if (m%gravity_on) call gravity_force(s%n, s%mass, m%big_g, s%fy)
+      if (m%dry_order > 0) call dry_friction(s%n, s%nfac, s%s3, m%mu_s, m%mu_d, m%v_t, &
+           s%vx, s%vy, s%fx, s%fy)
+      if (m%viscous_on) call viscous_friction(s%n, s%mass, m%gamma, s%vx, s%vy, s%fx, s%fy)
+    end associate
+  end subroutine sim_forces
+
+  !> Energies [m1 g D1]: kinetic, pair, wall, gravity.
+  subroutine sim_energy(sim, ek, ep, ew, eg)
+    type(sim_t), intent(in) :: sim
+    real(dp), intent(out) :: ek, ep, ew, eg
+    associate (s => sim%s, m => sim%m)
+      ek = kinetic_energy(s%n, s%mass, s%vx, s%vy)
+      ep = 0
+      if (m%pair_law == law_dipole) ep = pair_energy_all(s%n, s%x, s%y, s%mu, m%k_pair)
+      ew = wall_energy(s%n, s%x, s%y, s%mu, m%wall_law, m%k_wall, m%width, s%piston_h, &
+           m%piston_mode /= piston_none)
+      eg = 0
+      if (m%gravity_on) eg = m%big_g*sum(s%mass*s%y)
+    end associate
+  end subroutine sim_energy
+
+  logical function due(every, step, force)
+    integer, intent(in) :: every
+    integer(i8), intent(in) :: step
+    logical, intent(in) :: force
+    due = every > 0 .and. (force .or. mod(step, int(every, i8)) == 0)
+  end function due
+
+  !> One step: forces at step n, outputs of step n, advance to n+1.
+  !> final = .true. evaluates and writes the last state without advancing.
+  subroutine sim_step(sim, st, final)
+    type(sim_t), intent(inout) :: sim
+    type(status_t), intent(inout) :: st
+    logical, intent(in), optional :: final
+    logical :: last, o_pis, o_frm, o_dst, o_en
+    real(dp) :: ek, ep, ew, eg
+    last = .false.
+    if (present(final)) last = final
+    associate (s => sim%s, m => sim%m)
+      s%t = real(s%step, dp)*m%dt
+      call piston_at(sim%p, s%t, s%piston_h, s%phase)
+      o_pis = sim%writing .and. due(sim%sc%piston_every, s%step, last)
+      o_frm = sim%writing .and. due(sim%sc%frame_every, s%step, last)
+      o_dst = sim%writing .and. due(sim%sc%distance_every, s%step, last)
+      o_en = sim%writing .and. due(sim%sc%energy_every, s%step, last)
+      if (sim%need_velocity) call estimate_velocity(m%integrator, m%dt, s)
+      call sim_forces(sim, o_frm, st)
+      if (st%code /= 0) return
+      if (o_frm .or. o_en .or. last) call finish_velocity(m%integrator, m%dt, s)
+      if (o_pis) call write_piston(sim%o, s, packing_fraction(sim%area, m%width, s%piston_h))
+      if (o_frm) call write_frame(sim%o, s)
+      if (o_dst) call write_distance(sim%o, s, mean_distance(s%n, s%x, s%y))
+      if (o_en) then
+        call sim_energy(sim, ek, ep, ew, eg)
+        call write_energy(sim%o, s, ek, ep, ew, eg)
+      end if
+      if (last) return
+      call advance(m%integrator, m%dt, s)
+      s%step = s%step + 1
+    end associate
+  end subroutine sim_step
+
+  !> Step until step n_stop (default: the protocol's end), then write the final state.
+  subroutine sim_run(sim, st, n_stop)
+    type(sim_t), intent(inout) :: sim
+    type(status_t), intent(inout) :: st
+    integer(i8), intent(in), optional :: n_stop
+    integer(i8) :: stop_at
+    stop_at = sim%p%n_steps
+    if (present(n_stop)) stop_at = min(n_stop, sim%p%n_steps)
+    do while (sim%s%step < stop_at)
+      call sim_step(sim, st)
+      if (st%code /= 0) return
+      if (sim%progress .and. mod(sim%s%step, sim%progress_every) == 0) call progress_line(sim)
+    end do
+    if (sim%s%step >= sim%p%n_steps) call sim_step(sim, st, final=.true.)
+  end subroutine sim_run
+
+  subroutine progress_line(sim)
+    type(sim_t), intent(in) :: sim
+    write(output_unit, '(a,i0,1x,i0,1x,es12.5,1x,a,1x,es12.5)') 'progress ', sim%s%step, &
+         sim%p%n_steps, sim%s%t, trim(phase_names(sim%s%phase)), sim%s%piston_force
+    flush(output_unit)
+  end subroutine progress_line
+
+  !> Close files and write the final run.json (status completed or failed).
+  subroutine sim_finish(sim, st)
+    type(sim_t), intent(inout) :: sim
+    type(status_t), intent(inout) :: st
+    type(status_t) :: st2
+    integer(i8) :: clock1, rate
+    real(dp) :: wall
+    character(len=:), allocatable :: status
+    if (.not. sim%writing) return
+    call output_close(sim%o)
+    call system_clock(clock1, rate)
+    wall = real(clock1 - sim%clock0, dp)/real(rate, dp)
+    if (st%code == exit_ok) then
+      status = 'completed'
+    else
+      status = 'failed: '//trim(st%msg)
+    end if
+    call write_run_json(sim%o%dir, sim%scene_path, status, st%code, trim(st%msg), &
+         sim%s%step, sim%p%n_steps, sim%s%t, wall, sim%m, sim%s%n, st2)
+    if (st%code == exit_ok .and. st2%code /= exit_ok) st = st2
+    sim%writing = .false.
+  end subroutine sim_finish
+
+  !> The whole run, as both doors do it: load (nothing written on bad input),
+  !> open the run directory, run, finish.
+  subroutine sim_execute(path, dir, progress, st)
+    character(len=*), intent(in) :: path, dir
+    logical, intent(in) :: progress
+    type(status_t), intent(inout) :: st
+    type(sim_t) :: sim
+    call sim_load(sim, path, st)
+    if (st%code /= 0) return
+    sim%progress = progress
+    call sim_open_output(sim, dir, st)
+    if (st%code /= 0) return
+    call sim_run(sim, st)
+    call output_flush(sim%o)
+    call sim_finish(sim, st)
+  end subroutine sim_execute
+
+end module engine

@@ -1,0 +1,55 @@
+!> Body forces other than magnetism: gravity, viscous drag (thesis eq. 4.4)
+!> and regularised Coulomb friction against the glass (eq. 4.5) whose normal
+!> force comes from the dipole torques (eqs. 2.15 / 3.2 / 4.11).
+module friction
+  use kinds, only: dp
+  implicit none
+  private
+
+  public :: gravity_force, viscous_friction, dry_friction
+
+contains
+
+  !> Weight: fy -= G m_i.
+  subroutine gravity_force(n, mass, big_g, fy)
+    integer, intent(in) :: n
+    real(dp), intent(in) :: mass(n), big_g
+    real(dp), intent(inout) :: fy(n)
+    fy = fy - big_g*mass
+  end subroutine gravity_force
+
+  !> Viscous drag -gamma m_i v_i (thesis eq. 4.4 with D_i = alpha gamma T/m1).
+  subroutine viscous_friction(n, mass, gamma, vx, vy, fx, fy)
+    integer, intent(in) :: n
+    real(dp), intent(in) :: mass(n), gamma, vx(n), vy(n)
+    real(dp), intent(inout) :: fx(n), fy(n)
+    fx = fx - gamma*mass*vx
+    fy = fy - gamma*mass*vy
+  end subroutine viscous_friction
+
+  !> Regularised Coulomb friction. On entry fx, fy hold F_T = F_M + F_g
+  !> (eq. 4.6). Static: |F_T| <= mu_s N and |v| < v_t -> the particle holds
+  !> (friction = -F_T). Dynamic: -mu_d N v/(|v| + v_t).
+  !> N_i = nfac_i * s3_i, with s3_i = sum_j mu_j sin(theta_j) r_ij^-3.
+  subroutine dry_friction(n, nfac, s3, mu_s, mu_d, v_t, vx, vy, fx, fy)
+    integer, intent(in) :: n
+    real(dp), intent(in) :: nfac(n), s3(n), mu_s, mu_d, v_t, vx(n), vy(n)
+    real(dp), intent(inout) :: fx(n), fy(n)
+    integer :: i
+    real(dp) :: fn, ft, v, c
+    do i = 1, n
+      fn = nfac(i)*s3(i)
+      ft = sqrt(fx(i)**2 + fy(i)**2)
+      v = sqrt(vx(i)**2 + vy(i)**2)
+      if (ft <= mu_s*fn .and. v < v_t) then
+        fx(i) = 0
+        fy(i) = 0
+      else
+        c = mu_d*fn/(v + v_t)
+        fx(i) = fx(i) - c*vx(i)
+        fy(i) = fy(i) - c*vy(i)
+      end if
+    end do
+  end subroutine dry_friction
+
+end module friction

@@ -1,0 +1,130 @@
+!> Initial condition (thesis §2.3.2, §4.2.2): particles on a perturbed grid
+!> filling the cell below the piston, random velocity directions, species
+!> assigned by the thesis' interleaving rule or at random. Seeded RNG.
+module initial
+  use kinds, only: dp, pi
+  use errors, only: status_t, set_error, exit_bad_input
+  use scene, only: scene_t
+  use model, only: model_t
+  use state, only: state_t, state_allocate
+  implicit none
+  private
+
+  public :: place_particles, species_of
+
+  real(dp), parameter :: margin = 1.0_dp   !< clearance from walls and piston [D1]
+
+contains
+
+  !> Species of particle k (1-based) by the interleaving rule, thesis §4.2.2.
+  pure integer function species_of(k, r) result(s)
+    integer, intent(in) :: k
+    real(dp), intent(in) :: r       !< mixing ratio R (fraction of species 2)
+    integer :: every
+    if (r <= 0.0_dp) then
+      s = 1
+    else if (r >= 1.0_dp) then
+      s = 2
+    else if (r == 0.5_dp) then
+      s = merge(1, 2, mod(k, 2) == 1)
+    else if (r < 0.5_dp) then
+      every = int(1.0_dp/r)
+      s = merge(2, 1, mod(k, every) == 0)
+    else
+      every = int(1.0_dp/(1.0_dp - r))
+      s = merge(1, 2, mod(k, every) == 0)
+    end if
+  end function species_of
+
+  subroutine seed_rng(seed)
+    integer, intent(in) :: seed
+    integer :: k, i
+    integer, allocatable :: put(:)
+    call random_seed(size=k)
+    allocate(put(k))
+    do i = 1, k
+      put(i) = seed + 104729*i + 7919*i*i
+    end do
+    call random_seed(put=put)
+  end subroutine seed_rng
+
+  subroutine place_particles(sc, m, top, path, s, st)
+    type(scene_t), intent(in) :: sc
+    type(model_t), intent(in) :: m
+    real(dp), intent(in) :: top            !< piston height at t = 0 [D1]
+    character(len=*), intent(in) :: path   !< scene file, for messages
+    type(state_t), intent(inout) :: s
+    type(status_t), intent(inout) :: st
+    real(dp) :: wa, ha, sx, sy, u(2), ang, ymax, dmax
+    integer :: nc, nr, i, k, j, tmp
+    integer, allocatable :: perm(:)
+    character(len=200) :: buf
+
+    call state_allocate(s, sc%n)
+    call seed_rng(sc%seed)
+
+    ! species
+    if (trim(sc%placement) == 'random' .and. sc%n_species == 2) then
+      allocate(perm(sc%n))
+      perm = [(i, i = 1, sc%n)]
+      do i = sc%n, 2, -1
+        call random_number(u(1))
+        j = 1 + int(u(1)*i)
+        tmp = perm(i); perm(i) = perm(j); perm(j) = tmp
+      end do
+      s%species = 1
+      s%species(perm(1:nint(sc%mix_ratio*sc%n))) = 2
+    else if (sc%n_species == 2) then
+      s%species = [(species_of(k, sc%mix_ratio), k = 1, sc%n)]
+    else
+      s%species = 1
+    end if
+    s%mass = m%sp_mass(s%species)
+    s%mu = m%sp_mu(s%species)
+    s%wsin = s%mu*m%sp_sin(s%species)
+    s%nfac = m%sp_nfac(s%species)
+
+    ! grid in [margin, W - margin] x [margin, ymax - margin]
+    ymax = top
+    if (sc%fill_height > 0) ymax = sc%fill_height
+    if (ymax > m%height) ymax = m%height
+    wa = m%width - 2*margin
+    ha = ymax - 2*margin
+    dmax = maxval(m%sp_diam(1:m%n_species))
+    if (wa <= 0 .or. ha <= 0) then
+      call set_error(st, exit_bad_input, trim(path)//': &cell width/height: cell too small '// &
+           'for a wall clearance of 1 D1 on each side')
+      return
+    end if
+    nc = max(1, nint(sqrt(real(sc%n, dp)*wa/ha)))
+    nc = min(nc, sc%n)
+    nr = (sc%n + nc - 1)/nc
+    sx = wa/nc
+    sy = ha/nr
+    if (min(sx, sy) < 1.05_dp*dmax) then
+      write(buf, '(a,i0,a,f0.3,a,f0.3,a)') ': &particles n = ', sc%n, &
+           ': particles cannot fit in the cell below the piston (grid spacing ', &
+           min(sx, sy), ' D1 < 1.05 * largest diameter ', dmax, &
+           ' D1): lower n or raise &cell width/height, &protocol h_start or &particles fill_height'
+      call set_error(st, exit_bad_input, trim(path)//trim(buf))
+      return
+    end if
+    do k = 1, sc%n
+      i = mod(k - 1, nc)
+      j = (k - 1)/nc
+      call random_number(u)
+      s%x(k) = margin + (i + 0.5_dp)*sx + sc%jitter*sx*(2*u(1) - 1)
+      s%y(k) = margin + (j + 0.5_dp)*sy + sc%jitter*sy*(2*u(2) - 1)
+    end do
+    do k = 1, sc%n
+      call random_number(u(1))
+      ang = 2*pi*u(1)
+      s%vx(k) = sc%speed_init*cos(ang)
+      s%vy(k) = sc%speed_init*sin(ang)
+    end do
+    s%xp = s%x
+    s%yp = s%y
+    s%has_previous = .false.
+  end subroutine place_particles
+
+end module initial

@@ -1,0 +1,103 @@
+!> Time integrators. Each step is: velocity estimate (only when a force
+!> depends on velocity) -> forces f_n -> velocities v_n (only when output is
+!> due) -> advance to step n+1.
+!>
+!> Stormer-Verlet (thesis eqs. 2.16-2.17): x_1 = x_0 + h v_0 + h^2 a_0/2,
+!>   x_{n+1} = 2 x_n - x_{n-1} + h^2 a_n,  v_n = (x_{n+1} - x_{n-1})/(2h)
+!>   (computed before the update as (x_n - x_{n-1})/h + h a_n/2, the same number).
+!> Velocity Verlet (leapfrog form): v_{n+1/2} = v_{n-1/2} + h a_n,
+!>   x_{n+1} = x_n + h v_{n+1/2}, v_n = v_{n-1/2} + h a_n/2.
+!> Explicit Euler (seed 000): x_{n+1} = x_n + h v_n, v_{n+1} = v_n + h a_n.
+!> Velocity-dependent forces (friction) use v_n ~ v_{n-1/2} + h a_{n-1}/2,
+!> which makes the Verlet schemes first order in v for those forces only.
+module integrators
+  use kinds, only: dp
+  use state, only: state_t
+  use model, only: int_stormer_verlet, int_velocity_verlet, int_euler
+  implicit none
+  private
+
+  public :: estimate_velocity, finish_velocity, advance
+
+contains
+
+  !> Before the forces: fx, fy still hold f_{n-1}.
+  subroutine estimate_velocity(method, h, s)
+    integer, intent(in) :: method
+    real(dp), intent(in) :: h
+    type(state_t), intent(inout) :: s
+    if (.not. s%has_previous) return       ! v_0 is in vx, vy
+    select case (method)
+    case (int_stormer_verlet)
+      s%vx = (s%x - s%xp)/h + 0.5_dp*h*s%fx/s%mass
+      s%vy = (s%y - s%yp)/h + 0.5_dp*h*s%fy/s%mass
+    case (int_velocity_verlet)
+      s%vx = s%xp + 0.5_dp*h*s%fx/s%mass   ! xp, yp hold v_{n-1/2} for this method
+      s%vy = s%yp + 0.5_dp*h*s%fy/s%mass
+    end select
+  end subroutine estimate_velocity
+
+  !> After the forces f_n: v_n for output.
+  subroutine finish_velocity(method, h, s)
+    integer, intent(in) :: method
+    real(dp), intent(in) :: h
+    type(state_t), intent(inout) :: s
+    if (.not. s%has_previous) return
+    select case (method)
+    case (int_stormer_verlet)
+      s%vx = (s%x - s%xp)/h + 0.5_dp*h*s%fx/s%mass
+      s%vy = (s%y - s%yp)/h + 0.5_dp*h*s%fy/s%mass
+    case (int_velocity_verlet)
+      s%vx = s%xp + 0.5_dp*h*s%fx/s%mass
+      s%vy = s%yp + 0.5_dp*h*s%fy/s%mass
+    end select
+  end subroutine finish_velocity
+
+  !> x_n -> x_{n+1} using f_n.
+  subroutine advance(method, h, s)
+    integer, intent(in) :: method
+    real(dp), intent(in) :: h
+    type(state_t), intent(inout) :: s
+    integer :: i
+    real(dp) :: xn, yn, ax, ay
+    select case (method)
+    case (int_stormer_verlet)
+      if (s%has_previous) then
+        do i = 1, s%n
+          xn = 2*s%x(i) - s%xp(i) + h*h*s%fx(i)/s%mass(i)
+          yn = 2*s%y(i) - s%yp(i) + h*h*s%fy(i)/s%mass(i)
+          s%xp(i) = s%x(i); s%yp(i) = s%y(i)
+          s%x(i) = xn; s%y(i) = yn
+        end do
+      else
+        do i = 1, s%n
+          s%xp(i) = s%x(i); s%yp(i) = s%y(i)
+          s%x(i) = s%x(i) + h*s%vx(i) + 0.5_dp*h*h*s%fx(i)/s%mass(i)
+          s%y(i) = s%y(i) + h*s%vy(i) + 0.5_dp*h*h*s%fy(i)/s%mass(i)
+        end do
+      end if
+    case (int_velocity_verlet)
+      do i = 1, s%n
+        ax = s%fx(i)/s%mass(i); ay = s%fy(i)/s%mass(i)
+        if (s%has_previous) then
+          s%xp(i) = s%xp(i) + h*ax
+          s%yp(i) = s%yp(i) + h*ay
+        else
+          s%xp(i) = s%vx(i) + 0.5_dp*h*ax
+          s%yp(i) = s%vy(i) + 0.5_dp*h*ay
+        end if
+        s%x(i) = s%x(i) + h*s%xp(i)
+        s%y(i) = s%y(i) + h*s%yp(i)
+      end do
+    case (int_euler)
+      do i = 1, s%n
+        s%x(i) = s%x(i) + h*s%vx(i)
+        s%y(i) = s%y(i) + h*s%vy(i)
+        s%vx(i) = s%vx(i) + h*s%fx(i)/s%mass(i)
+        s%vy(i) = s%vy(i) + h*s%fy(i)/s%mass(i)
+      end do
+    end select
+    s%has_previous = .true.
+  end subroutine advance
+
+end module integrators

@@ -1,0 +1,68 @@
+!> magbed: the standalone engine.
+!>   magbed SCENE.nml [--out DIR] [--check] [--quiet]
+!> Exit codes: 0 ok, 2 bad input (nothing written), 3 numerical guard, 4 I/O.
+program magbed
+  use, intrinsic :: iso_fortran_env, only: error_unit, output_unit
+  use errors, only: status_t, exit_bad_input
+  use engine, only: sim_t, sim_load, sim_execute
+  implicit none
+  type(status_t) :: st
+  type(sim_t) :: sim
+  character(len=4096) :: arg, path, dir
+  logical :: check, quiet
+  integer :: i, nargs
+
+  path = ''
+  dir = '.'
+  check = .false.
+  quiet = .false.
+  nargs = command_argument_count()
+  i = 1
+  do while (i <= nargs)
+    call get_command_argument(i, arg)
+    select case (trim(arg))
+    case ('--out', '-o')
+      i = i + 1
+      if (i > nargs) call usage('--out needs a directory')
+      call get_command_argument(i, dir)
+    case ('--check')
+      check = .true.
+    case ('--quiet', '-q')
+      quiet = .true.
+    case ('--help', '-h')
+      write(output_unit, '(a)') 'usage: magbed SCENE.nml [--out DIR] [--check] [--quiet]'
+      stop
+    case default
+      if (arg(1:1) == '-') call usage('unknown option '//trim(arg))
+      if (len_trim(path) > 0) call usage('only one scene file is accepted')
+      path = arg
+    end select
+    i = i + 1
+  end do
+  if (len_trim(path) == 0) call usage('missing scene file')
+
+  if (check) then
+    call sim_load(sim, trim(path), st)
+    if (st%code == 0) then
+      write(output_unit, '(a,i0,a,i0,a)') 'ok: ', sim%s%n, ' particles, ', sim%p%n_steps, ' steps'
+      stop
+    end if
+  else
+    call sim_execute(trim(path), trim(dir), .not. quiet, st)
+  end if
+  if (st%code /= 0) then
+    write(error_unit, '(a)') 'magbed: error: '//trim(st%msg)
+    flush(error_unit)
+    error stop st%code, quiet=.true.
+  end if
+
+contains
+
+  subroutine usage(msg)
+    character(len=*), intent(in) :: msg
+    write(error_unit, '(a)') 'magbed: error: '//msg
+    write(error_unit, '(a)') 'usage: magbed SCENE.nml [--out DIR] [--check] [--quiet]'
+    error stop exit_bad_input, quiet=.true.
+  end subroutine usage
+
+end program magbed

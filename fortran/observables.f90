@@ -1,0 +1,43 @@
+!> Diagnostics computed only at their output cadence.
+module observables
+  use kinds, only: dp, pi
+  implicit none
+  private
+
+  public :: mean_distance, packing_fraction, kinetic_energy
+
+contains
+
+  !> Mean inter-particle distance D_hat (thesis eq. 2.1) [D1]:
+  !> (1/(N(N-1))) sum_i sum_{j/=i} |r_i - r_j|.
+  function mean_distance(n, x, y) result(d)
+    integer, intent(in) :: n
+    real(dp), intent(in) :: x(n), y(n)
+    real(dp) :: d, acc
+    integer :: i, j
+    d = 0
+    if (n < 2) return
+    do i = 1, n - 1
+      acc = 0
+      do j = i + 1, n
+        acc = acc + sqrt((x(i) - x(j))**2 + (y(i) - y(j))**2)
+      end do
+      d = d + acc
+    end do
+    d = 2*d/(real(n, dp)*real(n - 1, dp))
+  end function mean_distance
+
+  !> Packing fraction (eq. 2.2): particle area / (W H).
+  pure real(dp) function packing_fraction(area, width, h)
+    real(dp), intent(in) :: area, width, h
+    packing_fraction = area/(width*h)
+  end function packing_fraction
+
+  !> Kinetic energy sum m_i v_i^2/2 [m1 g D1].
+  pure real(dp) function kinetic_energy(n, mass, vx, vy)
+    integer, intent(in) :: n
+    real(dp), intent(in) :: mass(n), vx(n), vy(n)
+    kinetic_energy = 0.5_dp*sum(mass*(vx*vx + vy*vy))
+  end function kinetic_energy
+
+end module observables

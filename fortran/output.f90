@@ -1,0 +1,214 @@
+!> Output files of a run directory: thesis-style text with a header naming
+!> every column and its unit, written only at their cadence; run.json with
+!> status and metadata, replaced atomically (temporary file + rename).
+module output
+  use, intrinsic :: iso_c_binding, only: c_int, c_char, c_null_char
+  use kinds, only: dp, i8
+  use errors, only: status_t, set_error, exit_io
+  use model, only: model_t
+  use state, only: state_t
+  implicit none
+  private
+
+  public :: output_t, output_open, output_close, write_piston, write_frame, &
+       write_distance, write_energy, write_run_json, make_dir, output_flush
+
+  type :: output_t
+    character(len=:), allocatable :: dir
+    integer :: u_piston = -1, u_frame = -1, u_dist = -1, u_energy = -1
+  end type output_t
+
+  interface
+    integer(c_int) function c_rename(old, new) bind(C, name='rename')
+      import :: c_int, c_char
+      character(kind=c_char), intent(in) :: old(*), new(*)
+    end function c_rename
+    integer(c_int) function c_mkdir(path, mode) bind(C, name='mkdir')
+      import :: c_int, c_char
+      character(kind=c_char), intent(in) :: path(*)
+      integer(c_int), value :: mode
+    end function c_mkdir
+  end interface
+
+  character(len=*), parameter :: rfmt = 'es24.16e3'
+
+contains
+
+  !> Create a directory (parents must exist); an existing one is fine.
+  subroutine make_dir(path, st)
+    character(len=*), intent(in) :: path
+    type(status_t), intent(inout) :: st
+    integer(c_int) :: rc
+    logical :: there
+    inquire(file=trim(path)//'/.', exist=there)
+    if (there) return
+    rc = c_mkdir(trim(path)//c_null_char, int(o'755', c_int))
+    inquire(file=trim(path)//'/.', exist=there)
+    if (.not. there) call set_error(st, exit_io, trim(path)//': cannot create output directory')
+  end subroutine make_dir
+
+  subroutine output_open(o, dir, m, piston_on, frames_on, dist_on, energy_on, st)
+    type(output_t), intent(inout) :: o
+    character(len=*), intent(in) :: dir
+    type(model_t), intent(in) :: m
+    logical, intent(in) :: piston_on, frames_on, dist_on, energy_on
+    type(status_t), intent(inout) :: st
+    character(len=200) :: units
+    o%dir = trim(dir)
+    write(units, '(a,es10.4,a,es10.4,a,es10.4,a)') 'Units: D1 = ', m%length_unit, ' m, T = ', &
+         m%time_unit, ' s, m1*g = ', m%force_unit, ' N'
+    if (piston_on) call open1(o%u_piston, 'piston.dat', &
+         '# piston.dat: piston history (force = push of all particles on the piston). '// &
+         trim(units), '# step t[T] H[D1] F_piston[m1*g] phi[1] phase')
+    if (frames_on) call open1(o%u_frame, 'particles.dat', &
+         '# particles.dat: particle frames (fmag = |pair + wall magnetic force|). '//trim(units), &
+         '# step t[T] id species x[D1] y[D1] vx[D1/T] vy[D1/T] fx[m1*g] fy[m1*g] fmag[m1*g]')
+    if (dist_on) call open1(o%u_dist, 'mean_distance.dat', &
+         '# mean_distance.dat: mean inter-particle distance, thesis eq. (2.1). '//trim(units), &
+         '# step t[T] D_hat[D1]')
+    if (energy_on) call open1(o%u_energy, 'energy.dat', &
+         '# energy.dat: mechanical energy (gravity potential from y = 0). '//trim(units), &
+         '# step t[T] E_kin[m1*g*D1] E_pair[m1*g*D1] E_wall[m1*g*D1] E_grav[m1*g*D1] E_total[m1*g*D1]')
+  contains
+    subroutine open1(u, name, head1, head2)
+      integer, intent(out) :: u
+      character(len=*), intent(in) :: name, head1, head2
+      integer :: ios
+      open(newunit=u, file=o%dir//'/'//name, status='replace', action='write', iostat=ios)
+      if (ios /= 0) then
+        call set_error(st, exit_io, o%dir//'/'//name//': cannot open for writing')
+        u = -1
+        return
+      end if
+      write(u, '(a)') head1
+      write(u, '(a)') head2
+    end subroutine open1
+  end subroutine output_open
+
+  subroutine output_flush(o)
+    type(output_t), intent(in) :: o
+    if (o%u_piston > 0) flush(o%u_piston)
+    if (o%u_frame > 0) flush(o%u_frame)
+    if (o%u_dist > 0) flush(o%u_dist)
+    if (o%u_energy > 0) flush(o%u_energy)
+  end subroutine output_flush
+
+  subroutine output_close(o)
+    type(output_t), intent(inout) :: o
+    if (o%u_piston > 0) close(o%u_piston)
+    if (o%u_frame > 0) close(o%u_frame)
+    if (o%u_dist > 0) close(o%u_dist)
+    if (o%u_energy > 0) close(o%u_energy)
+    o%u_piston = -1; o%u_frame = -1; o%u_dist = -1; o%u_energy = -1
+  end subroutine output_close
+
+  subroutine write_piston(o, s, phi)
+    type(output_t), intent(in) :: o
+    type(state_t), intent(in) :: s
+    real(dp), intent(in) :: phi
+    write(o%u_piston, '(i0,4(1x,'//rfmt//'),1x,i0)') s%step, s%t, s%piston_h, &
+         s%piston_force, phi, s%phase
+  end subroutine write_piston
+
+  subroutine write_frame(o, s)
+    type(output_t), intent(in) :: o
+    type(state_t), intent(in) :: s
+    integer :: i
+    do i = 1, s%n
+      write(o%u_frame, '(i0,1x,'//rfmt//',1x,i0,1x,i0,7(1x,'//rfmt//'))') s%step, s%t, i, &
+           s%species(i), s%x(i), s%y(i), s%vx(i), s%vy(i), s%fx(i), s%fy(i), s%fmag(i)
+    end do
+  end subroutine write_frame
+
+  subroutine write_distance(o, s, d)
+    type(output_t), intent(in) :: o
+    type(state_t), intent(in) :: s
+    real(dp), intent(in) :: d
+    write(o%u_dist, '(i0,2(1x,'//rfmt//'))') s%step, s%t, d
+  end subroutine write_distance
+
+  subroutine write_energy(o, s, ek, ep, ew, eg)
+    type(output_t), intent(in) :: o
+    type(state_t), intent(in) :: s
+    real(dp), intent(in) :: ek, ep, ew, eg
+    write(o%u_energy, '(i0,6(1x,'//rfmt//'))') s%step, s%t, ek, ep, ew, eg, ek + ep + ew + eg
+  end subroutine write_energy
+
+  !> run.json, replaced atomically.
+  subroutine write_run_json(dir, scene_path, status, code, message, steps_done, steps_total, &
+       t_now, wall, m, n, st)
+    character(len=*), intent(in) :: dir, scene_path, status, message
+    integer, intent(in) :: code, n
+    integer(i8), intent(in) :: steps_done, steps_total
+    real(dp), intent(in) :: t_now, wall
+    type(model_t), intent(in) :: m
+    type(status_t), intent(inout) :: st
+    integer :: u, ios
+    character(len=:), allocatable :: tmp, final
+    real(dp) :: per_step
+    tmp = trim(dir)//'/.run.json.tmp'
+    final = trim(dir)//'/run.json'
+    per_step = 0
+    if (steps_done > 0) per_step = wall/real(steps_done, dp)
+    open(newunit=u, file=tmp, status='replace', action='write', iostat=ios)
+    if (ios /= 0) then
+      call set_error(st, exit_io, tmp//': cannot write run metadata')
+      return
+    end if
+    write(u, '(a)') '{'
+    write(u, '(a)') '  "program": "magbed",'
+    write(u, '(a)') '  "version": "0.1.0",'
+    write(u, '(a)') '  "compiler": "'//esc(compiler_id())//'",'
+    write(u, '(a)') '  "scene": "'//esc(trim(scene_path))//'",'
+    write(u, '(a)') '  "status": "'//esc(trim(status))//'",'
+    write(u, '(a,i0,a)') '  "exit_code": ', code, ','
+    write(u, '(a)') '  "message": "'//esc(trim(message))//'",'
+    write(u, '(a,i0,a)') '  "n_particles": ', n, ','
+    write(u, '(a,i0,a)') '  "steps_done": ', steps_done, ','
+    write(u, '(a,i0,a)') '  "steps_total": ', steps_total, ','
+    write(u, '(a,'//rfmt//',a)') '  "t_reached": ', t_now, ','
+    write(u, '(a,'//rfmt//',a)') '  "wall_time_s": ', wall, ','
+    write(u, '(a,'//rfmt//',a)') '  "wall_time_per_step_s": ', per_step, ','
+    write(u, '(a)') '  "units": {'
+    write(u, '(a,'//rfmt//',a)') '    "length_m": ', m%length_unit, ','
+    write(u, '(a,'//rfmt//',a)') '    "time_s": ', m%time_unit, ','
+    write(u, '(a,'//rfmt//',a)') '    "mass_kg": ', m%mass_unit, ','
+    write(u, '(a,'//rfmt//',a)') '    "force_N": ', m%force_unit, ','
+    write(u, '(a,'//rfmt//')') '    "moment_Am2": ', m%moment_unit
+    write(u, '(a)') '  },'
+    write(u, '(a)') '  "groups": {'
+    write(u, '(a,'//rfmt//',a)') '    "F": ', m%big_f, ','
+    write(u, '(a,'//rfmt//')') '    "G": ', m%big_g
+    write(u, '(a)') '  }'
+    write(u, '(a)') '}'
+    close(u)
+    if (c_rename(tmp//c_null_char, final//c_null_char) /= 0) &
+         call set_error(st, exit_io, final//': cannot rename run metadata into place')
+  contains
+    function esc(s) result(r)
+      character(len=*), intent(in) :: s
+      character(len=:), allocatable :: r
+      integer :: i
+      r = ''
+      do i = 1, len(s)
+        select case (s(i:i))
+        case ('"'); r = r//'\"'
+        case ('\'); r = r//'\\'
+        case default
+          if (iachar(s(i:i)) < 32) then
+            r = r//' '
+          else
+            r = r//s(i:i)
+          end if
+        end select
+      end do
+    end function esc
+  end subroutine write_run_json
+
+  function compiler_id() result(s)
+    use, intrinsic :: iso_fortran_env, only: compiler_version
+    character(len=:), allocatable :: s
+    s = compiler_version()
+  end function compiler_id
+
+end module output

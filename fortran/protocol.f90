@@ -1,0 +1,103 @@
+!> Piston schedule (thesis Algorithm 2.1) as a pure function of time, so that
+!> a run is reproducible from (scene, step) alone.
+!>
+!> Phases: 1 relaxation with exponential descent h_start -> h0,
+!>         2 constant-speed compression h0 -> hf, 3 hold at hf,
+!>         4 expansion hf -> h0, 5 final relaxation at h0.
+!> Piston 'fixed' stays at h_start (phase 0); 'none' has no piston (phase 0).
+module protocol
+  use kinds, only: dp, i8
+  use scene, only: scene_t
+  use model, only: model_t, piston_prescribed, piston_none
+  implicit none
+  private
+
+  public :: protocol_t, protocol_build, piston_at, phase_names
+
+  character(len=*), parameter :: phase_names(0:5) = [character(len=8) :: &
+       'steady', 'relax', 'compress', 'hold', 'expand', 'final']
+
+  type :: protocol_t
+    integer :: mode = piston_prescribed
+    real(dp) :: h_start = 0, h0 = 0, hf = 0, speed = 0, rate = 5
+    real(dp) :: t_relax = 0, t_comp = 0, t_hold = 0, t_exp = 0, t_final = 0
+    real(dp) :: t_total = 0          !< [T]
+    integer(i8) :: n_steps = 0       !< steps to run
+  end type protocol_t
+
+contains
+
+  !> hf from phi_final: phi = (pi/4) sum_i D_i^2 / (W hf).
+  subroutine protocol_build(sc, m, area_particles, p)
+    type(scene_t), intent(in) :: sc
+    type(model_t), intent(in) :: m
+    real(dp), intent(in) :: area_particles   !< sum of particle areas [D1^2]
+    type(protocol_t), intent(out) :: p
+    p%mode = m%piston_mode
+    p%h_start = sc%h_start
+    if (p%h_start < 0) p%h_start = sc%height
+    if (m%piston_mode == piston_prescribed) then
+      p%h0 = sc%h0
+      if (p%h0 < 0) p%h0 = p%h_start
+      p%hf = sc%hf
+      if (sc%phi_final > 0) p%hf = area_particles/(sc%width*sc%phi_final)
+      p%speed = sc%piston_speed
+      p%rate = sc%relax_rate
+      p%t_relax = sc%t_relax
+      p%t_comp = (p%h0 - p%hf)/p%speed
+      p%t_hold = sc%t_hold
+      p%t_exp = 0
+      if (sc%expand) p%t_exp = p%t_comp
+      p%t_final = sc%t_final
+      p%t_total = p%t_relax + p%t_comp + p%t_hold + p%t_exp + p%t_final
+    else
+      p%h0 = p%h_start; p%hf = p%h_start
+      p%t_total = sc%t_end
+    end if
+    p%n_steps = max(1_i8, nint(p%t_total/sc%dt, i8))
+  end subroutine protocol_build
+
+  !> Piston height [D1] and phase at time t [T].
+  pure subroutine piston_at(p, t, h, phase)
+    type(protocol_t), intent(in) :: p
+    real(dp), intent(in) :: t
+    real(dp), intent(out) :: h
+    integer, intent(out) :: phase
+    real(dp) :: s
+    if (p%mode /= piston_prescribed) then
+      h = p%h_start
+      if (p%mode == piston_none) h = huge(1.0_dp)
+      phase = 0
+      return
+    end if
+    s = t
+    if (s < p%t_relax) then
+      phase = 1
+      h = p%h_start - (p%h_start - p%h0)*(exp(p%rate*s/p%t_relax) - 1.0_dp) &
+           /(exp(p%rate) - 1.0_dp)
+      return
+    end if
+    s = s - p%t_relax
+    if (s < p%t_comp) then
+      phase = 2
+      h = p%h0 - p%speed*s
+      return
+    end if
+    s = s - p%t_comp
+    if (s < p%t_hold) then
+      phase = 3
+      h = p%hf
+      return
+    end if
+    s = s - p%t_hold
+    if (s < p%t_exp) then
+      phase = 4
+      h = p%hf + p%speed*s
+      return
+    end if
+    phase = 5
+    h = p%h0
+    if (p%t_exp <= 0) h = p%hf
+  end subroutine piston_at
+
+end module protocol

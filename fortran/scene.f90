@@ -1,0 +1,517 @@
+!> Scene input: the namelist groups, their defaults, reading, validation and
+!> the resolved-namelist writer.
+!>
+!> Units: group &material is in SI; every other length is in big-particle
+!> diameters D1, every time in T = sqrt(D1/g), every speed in D1/T.
+module scene
+  use kinds, only: dp
+  use errors, only: status_t, set_error, exit_bad_input, exit_io, msg_len
+  implicit none
+  private
+
+  public :: scene_t, max_species, scene_read, scene_validate, scene_write
+  public :: known_groups
+
+  integer, parameter :: max_species = 8
+  integer, parameter :: name_len = 32
+  character(len=*), parameter :: known_groups(8) = [character(len=12) :: &
+       'scene', 'material', 'cell', 'particles', 'physics', 'integration', &
+       'protocol', 'output']
+
+  type :: scene_t
+    ! &scene
+    character(len=name_len) :: kind = 'magnet_bed'  !< scene kind
+    character(len=128) :: title = 'untitled'        !< free text
+    ! &material (SI)
+    real(dp) :: diameter = 6.0e-3_dp    !< big-particle diameter D1 [m]
+    real(dp) :: thickness = 3.0e-3_dp   !< magnet thickness epsilon [m]
+    real(dp) :: density = 7368.0_dp     !< magnet density rho [kg/m^3]
+    real(dp) :: remanence = 1.3_dp      !< residual magnetisation Br [T]
+    real(dp) :: gap = 3.1e-3_dp         !< Hele-Shaw wall separation E [m]
+    real(dp) :: gravity_si = 9.8_dp     !< g [m/s^2], also sets T = sqrt(D1/g)
+    ! &cell [D1]
+    real(dp) :: width = 60.0_dp         !< cell width W [D1]
+    real(dp) :: height = 75.0_dp        !< cell height (fixed top) [D1]
+    ! &particles
+    integer :: n = 368                  !< number of particles
+    integer :: seed = 12345             !< RNG seed of the initial condition
+    real(dp) :: speed_init = 1.0e-2_dp  !< initial speed, random direction [D1/T]
+    real(dp) :: jitter = 0.1_dp         !< grid perturbation, fraction of spacing
+    real(dp) :: fill_height = -1.0_dp   !< top of the initial grid [D1] (<0: h_start)
+    integer :: n_species = 1
+    real(dp) :: species_diameter(max_species) = 1.0_dp  !< D_k / D1
+    real(dp) :: mix_ratio = 0.0_dp      !< R: fraction of species 2 (bi-disperse)
+    character(len=name_len) :: placement = 'interleave'  !< 'interleave' | 'random'
+    ! &physics
+    character(len=name_len) :: pair_law = 'dipole'        !< 'dipole' | 'none'
+    character(len=name_len) :: wall_law = 'experimental'  !< 'experimental' | 'infinite' | 'slab' | 'none'
+    logical :: gravity = .true.
+    character(len=name_len) :: dry_friction = 'first_order'  !< 'none' | 'first_order' | 'second_order'
+    real(dp) :: mu_static = 0.6_dp
+    real(dp) :: mu_dynamic = 0.45_dp
+    real(dp) :: v_threshold = 1.0e-6_dp  !< [D1/T]
+    real(dp) :: viscous_gamma = 0.0_dp   !< dimensionless gamma T/m1; 0 = off
+    ! &integration
+    character(len=name_len) :: integrator = 'stormer_verlet'  !< | 'velocity_verlet' | 'euler'
+    character(len=name_len) :: neighbour = 'all_pairs'
+    real(dp) :: dt = 2.0e-3_dp           !< time step [T]
+    ! &protocol
+    character(len=name_len) :: piston = 'prescribed'  !< 'prescribed' | 'fixed' | 'none'
+    real(dp) :: h_start = -1.0_dp        !< piston height at t = 0 [D1] (<0: cell height)
+    real(dp) :: t_relax = 100.0_dp       !< relaxation time [T]
+    real(dp) :: relax_rate = 5.0_dp      !< steepness k of the exponential descent
+    real(dp) :: h0 = -1.0_dp             !< compression start height [D1] (<0: h_start)
+    real(dp) :: hf = 14.0_dp             !< maximum-compression height [D1]
+    real(dp) :: phi_final = 0.0_dp       !< if > 0: hf from this packing fraction
+    real(dp) :: piston_speed = 0.02318_dp  !< [D1/T]
+    real(dp) :: t_hold = 0.0_dp          !< rest at hf [T]
+    logical :: expand = .true.           !< expand back to h0 after compression
+    real(dp) :: t_final = 0.0_dp         !< final relaxation at h0 [T]
+    real(dp) :: t_end = -1.0_dp          !< total time for piston = fixed|none [T]
+    ! &output (cadences in steps; 0 switches a file off)
+    integer :: piston_every = 100
+    integer :: frame_every = 0
+    integer :: distance_every = 1000
+    integer :: energy_every = 0
+    integer :: progress_every = 0        !< 0: about 200 progress lines per run
+  end type scene_t
+
+contains
+
+  !> Read every group of a namelist file into `sc` (absent groups keep defaults).
+  subroutine scene_read(path, sc, st)
+    character(len=*), intent(in) :: path
+    type(scene_t), intent(out) :: sc
+    type(status_t), intent(inout) :: st
+
+    ! namelist variables (one local per key, defaults from scene_t)
+    character(len=name_len) :: kind
+    character(len=128) :: title
+    real(dp) :: diameter, thickness, density, remanence, gap, gravity_si
+    real(dp) :: width, height
+    integer :: n, seed, n_species
+    real(dp) :: speed_init, jitter, fill_height, species_diameter(max_species), mix_ratio
+    character(len=name_len) :: placement
+    character(len=name_len) :: pair_law, wall_law, dry_friction
+    logical :: gravity
+    real(dp) :: mu_static, mu_dynamic, v_threshold, viscous_gamma
+    character(len=name_len) :: integrator, neighbour
+    real(dp) :: dt
+    character(len=name_len) :: piston
+    real(dp) :: h_start, t_relax, relax_rate, h0, hf, phi_final, piston_speed
+    real(dp) :: t_hold, t_final, t_end
+    logical :: expand
+    integer :: piston_every, frame_every, distance_every, energy_every, progress_every
+
+    namelist /scene/ kind, title
+    namelist /material/ diameter, thickness, density, remanence, gap, gravity_si
+    namelist /cell/ width, height
+    namelist /particles/ n, seed, speed_init, jitter, fill_height, n_species, &
+         species_diameter, mix_ratio, placement
+    namelist /physics/ pair_law, wall_law, gravity, dry_friction, mu_static, &
+         mu_dynamic, v_threshold, viscous_gamma
+    namelist /integration/ integrator, neighbour, dt
+    namelist /protocol/ piston, h_start, t_relax, relax_rate, h0, hf, phi_final, &
+         piston_speed, t_hold, expand, t_final, t_end
+    namelist /output/ piston_every, frame_every, distance_every, energy_every, &
+         progress_every
+
+    integer :: u, ios
+    character(len=msg_len) :: iom
+
+    kind = sc%kind; title = sc%title
+    diameter = sc%diameter; thickness = sc%thickness; density = sc%density
+    remanence = sc%remanence; gap = sc%gap; gravity_si = sc%gravity_si
+    width = sc%width; height = sc%height
+    n = sc%n; seed = sc%seed; speed_init = sc%speed_init; jitter = sc%jitter
+    fill_height = sc%fill_height; n_species = sc%n_species
+    species_diameter = sc%species_diameter; mix_ratio = sc%mix_ratio
+    placement = sc%placement
+    pair_law = sc%pair_law; wall_law = sc%wall_law; gravity = sc%gravity
+    dry_friction = sc%dry_friction; mu_static = sc%mu_static
+    mu_dynamic = sc%mu_dynamic; v_threshold = sc%v_threshold
+    viscous_gamma = sc%viscous_gamma
+    integrator = sc%integrator; neighbour = sc%neighbour; dt = sc%dt
+    piston = sc%piston; h_start = sc%h_start; t_relax = sc%t_relax
+    relax_rate = sc%relax_rate; h0 = sc%h0; hf = sc%hf; phi_final = sc%phi_final
+    piston_speed = sc%piston_speed; t_hold = sc%t_hold; expand = sc%expand
+    t_final = sc%t_final; t_end = sc%t_end
+    piston_every = sc%piston_every; frame_every = sc%frame_every
+    distance_every = sc%distance_every; energy_every = sc%energy_every
+    progress_every = sc%progress_every
+
+    open(newunit=u, file=path, status='old', action='read', iostat=ios, iomsg=iom)
+    if (ios /= 0) then
+      call set_error(st, exit_io, trim(path)//': cannot open scene file: '//trim(iom))
+      return
+    end if
+    call check_groups(u, path, st)
+    if (st%code /= 0) then
+      close(u); return
+    end if
+
+    rewind(u); read(u, nml=scene, iostat=ios, iomsg=iom)
+    call group_status('scene')
+    rewind(u); read(u, nml=material, iostat=ios, iomsg=iom)
+    call group_status('material')
+    rewind(u); read(u, nml=cell, iostat=ios, iomsg=iom)
+    call group_status('cell')
+    rewind(u); read(u, nml=particles, iostat=ios, iomsg=iom)
+    call group_status('particles')
+    rewind(u); read(u, nml=physics, iostat=ios, iomsg=iom)
+    call group_status('physics')
+    rewind(u); read(u, nml=integration, iostat=ios, iomsg=iom)
+    call group_status('integration')
+    rewind(u); read(u, nml=protocol, iostat=ios, iomsg=iom)
+    call group_status('protocol')
+    rewind(u); read(u, nml=output, iostat=ios, iomsg=iom)
+    call group_status('output')
+    close(u)
+    if (st%code /= 0) return
+
+    sc%kind = kind; sc%title = title
+    sc%diameter = diameter; sc%thickness = thickness; sc%density = density
+    sc%remanence = remanence; sc%gap = gap; sc%gravity_si = gravity_si
+    sc%width = width; sc%height = height
+    sc%n = n; sc%seed = seed; sc%speed_init = speed_init; sc%jitter = jitter
+    sc%fill_height = fill_height; sc%n_species = n_species
+    sc%species_diameter = species_diameter; sc%mix_ratio = mix_ratio
+    sc%placement = placement
+    sc%pair_law = pair_law; sc%wall_law = wall_law; sc%gravity = gravity
+    sc%dry_friction = dry_friction; sc%mu_static = mu_static
+    sc%mu_dynamic = mu_dynamic; sc%v_threshold = v_threshold
+    sc%viscous_gamma = viscous_gamma
+    sc%integrator = integrator; sc%neighbour = neighbour; sc%dt = dt
+    sc%piston = piston; sc%h_start = h_start; sc%t_relax = t_relax
+    sc%relax_rate = relax_rate; sc%h0 = h0; sc%hf = hf; sc%phi_final = phi_final
+    sc%piston_speed = piston_speed; sc%t_hold = t_hold; sc%expand = expand
+    sc%t_final = t_final; sc%t_end = t_end
+    sc%piston_every = piston_every; sc%frame_every = frame_every
+    sc%distance_every = distance_every; sc%energy_every = energy_every
+    sc%progress_every = progress_every
+
+  contains
+
+    subroutine group_status(group)
+      character(len=*), intent(in) :: group
+      if (ios > 0) then
+        call set_error(st, exit_bad_input, trim(path)//': &'//group// &
+             ': cannot read group: '//trim(iom))
+      end if
+      ! ios < 0: group absent, defaults stand
+    end subroutine group_status
+
+  end subroutine scene_read
+
+  !> Refuse unknown group names (a namelist read would silently skip them).
+  subroutine check_groups(u, path, st)
+    integer, intent(in) :: u
+    character(len=*), intent(in) :: path
+    type(status_t), intent(inout) :: st
+    character(len=512) :: line, name
+    integer :: ios, k, e
+    rewind(u)
+    do
+      read(u, '(a)', iostat=ios) line
+      if (ios /= 0) exit
+      line = adjustl(line)
+      if (len_trim(line) < 2) cycle
+      if (line(1:1) /= '&' .and. line(1:1) /= '$') cycle
+      e = scan(line(2:), ' !/,') 
+      if (e == 0) then
+        name = line(2:)
+      else
+        name = line(2:e)
+      end if
+      name = lower(name)
+      if (trim(name) == 'end' .or. len_trim(name) == 0) cycle
+      if (.not. any([(trim(known_groups(k)) == trim(name), k = 1, size(known_groups))])) then
+        call set_error(st, exit_bad_input, trim(path)//': unknown namelist group &'// &
+             trim(name)//' (allowed: &scene &material &cell &particles &physics '// &
+             '&integration &protocol &output)')
+        return
+      end if
+    end do
+  end subroutine check_groups
+
+  pure function lower(s) result(r)
+    character(len=*), intent(in) :: s
+    character(len=len(s)) :: r
+    integer :: i
+    r = s
+    do i = 1, len(s)
+      if (s(i:i) >= 'A' .and. s(i:i) <= 'Z') r(i:i) = achar(iachar(s(i:i)) + 32)
+    end do
+  end function lower
+
+  !> Check every value and every consistency rule; the first violation is
+  !> reported as "FILE: &group key = value: allowed range".
+  subroutine scene_validate(sc, path, st)
+    type(scene_t), intent(in) :: sc
+    character(len=*), intent(in) :: path
+    type(status_t), intent(inout) :: st
+    real(dp) :: hs, h0, hf, dmax
+    integer :: k
+
+    call choice('scene', 'kind', sc%kind, [character(len=name_len) :: 'magnet_bed'])
+    call rpos('material', 'diameter', sc%diameter, 1.0e-6_dp, 1.0_dp)
+    call rpos('material', 'thickness', sc%thickness, 1.0e-7_dp, 1.0_dp)
+    call rpos('material', 'density', sc%density, 1.0_dp, 1.0e5_dp)
+    call rpos('material', 'remanence', sc%remanence, 0.0_dp, 10.0_dp, .true.)
+    call rpos('material', 'gap', sc%gap, 1.0e-7_dp, 1.0_dp)
+    call rpos('material', 'gravity_si', sc%gravity_si, 1.0e-3_dp, 1.0e3_dp)
+    call rpos('cell', 'width', sc%width, 1.0_dp, 1.0e6_dp)
+    call rpos('cell', 'height', sc%height, 1.0_dp, 1.0e6_dp)
+    call ipos('particles', 'n', sc%n, 1, 50000000)
+    call rpos('particles', 'speed_init', sc%speed_init, 0.0_dp, 1.0e3_dp, .true.)
+    call rpos('particles', 'jitter', sc%jitter, 0.0_dp, 0.45_dp, .true.)
+    call ipos('particles', 'n_species', sc%n_species, 1, max_species)
+    do k = 1, min(max(sc%n_species, 1), max_species)
+      call rpos('particles', 'species_diameter', sc%species_diameter(k), 0.05_dp, 1.0_dp)
+    end do
+    if (st%code /= 0) return
+    if (sc%species_diameter(1) /= 1.0_dp) call bad('particles', 'species_diameter(1)', &
+         rstr(sc%species_diameter(1)), 'must be 1: species 1 defines D1 (the length unit)')
+    call rpos('particles', 'mix_ratio', sc%mix_ratio, 0.0_dp, 1.0_dp, .true.)
+    if (sc%n_species == 1 .and. sc%mix_ratio /= 0.0_dp) call bad('particles', 'mix_ratio', &
+         rstr(sc%mix_ratio), 'must be 0 when n_species = 1')
+    call choice('particles', 'placement', sc%placement, &
+         [character(len=name_len) :: 'interleave', 'random'])
+
+    call choice('physics', 'pair_law', sc%pair_law, [character(len=name_len) :: 'dipole', 'none'])
+    call choice('physics', 'wall_law', sc%wall_law, &
+         [character(len=name_len) :: 'experimental', 'infinite', 'slab', 'none'])
+    call choice('physics', 'dry_friction', sc%dry_friction, &
+         [character(len=name_len) :: 'none', 'first_order', 'second_order'])
+    call rpos('physics', 'mu_static', sc%mu_static, 0.0_dp, 10.0_dp, .true.)
+    call rpos('physics', 'mu_dynamic', sc%mu_dynamic, 0.0_dp, 10.0_dp, .true.)
+    call rpos('physics', 'v_threshold', sc%v_threshold, 1.0e-15_dp, 1.0_dp)
+    call rpos('physics', 'viscous_gamma', sc%viscous_gamma, 0.0_dp, 1.0e6_dp, .true.)
+    if (trim(sc%dry_friction) /= 'none') then
+      dmax = sqrt(sc%diameter**2 + sc%thickness**2)
+      if (sc%gap <= sc%thickness .or. sc%gap >= dmax) call bad('material', 'gap', &
+           rstr(sc%gap), 'with dry friction on, the magnets must be able to tilt: '// &
+           'thickness < gap < sqrt(diameter^2 + thickness^2) = '//rstr(dmax)//' m')
+    end if
+
+    call choice('integration', 'integrator', sc%integrator, &
+         [character(len=name_len) :: 'stormer_verlet', 'velocity_verlet', 'euler'])
+    call choice('integration', 'neighbour', sc%neighbour, [character(len=name_len) :: 'all_pairs'])
+    call rpos('integration', 'dt', sc%dt, 1.0e-12_dp, 1.0_dp)
+
+    call choice('protocol', 'piston', sc%piston, &
+         [character(len=name_len) :: 'prescribed', 'fixed', 'none'])
+    if (st%code /= 0) return
+    hs = sc%h_start
+    if (hs < 0.0_dp) hs = sc%height
+    h0 = sc%h0
+    if (h0 < 0.0_dp) h0 = hs
+    if (hs > sc%height .or. hs <= 1.0_dp) call bad('protocol', 'h_start', rstr(sc%h_start), &
+         'must be in (1, cell height = '//rstr(sc%height)//'] D1 (negative: cell height)')
+    if (trim(sc%piston) == 'prescribed') then
+      call rpos('protocol', 't_relax', sc%t_relax, 0.0_dp, 1.0e9_dp, .true.)
+      call rpos('protocol', 'relax_rate', sc%relax_rate, 1.0e-3_dp, 50.0_dp)
+      if (h0 > hs .or. h0 <= 1.0_dp) call bad('protocol', 'h0', rstr(sc%h0), &
+           'must be in (1, h_start = '//rstr(hs)//'] D1 (negative: h_start)')
+      call rpos('protocol', 'phi_final', sc%phi_final, 0.0_dp, 0.9069_dp, .true.)
+      hf = sc%hf
+      if (sc%phi_final > 0.0_dp) hf = -1.0_dp  ! derived later, checked below
+      if (sc%phi_final <= 0.0_dp .and. (hf >= h0 .or. hf <= 0.0_dp)) call bad('protocol', 'hf', &
+           rstr(sc%hf), 'must be in (0, h0 = '//rstr(h0)//') D1')
+      call rpos('protocol', 'piston_speed', sc%piston_speed, 1.0e-9_dp, 1.0e3_dp)
+      call rpos('protocol', 't_hold', sc%t_hold, 0.0_dp, 1.0e9_dp, .true.)
+      call rpos('protocol', 't_final', sc%t_final, 0.0_dp, 1.0e9_dp, .true.)
+    else
+      call rpos('protocol', 't_end', sc%t_end, 1.0e-12_dp, 1.0e9_dp)
+    end if
+    if (sc%fill_height > 0.0_dp .and. sc%fill_height > hs) call bad('particles', 'fill_height', &
+         rstr(sc%fill_height), 'must be <= h_start = '//rstr(hs)//' D1')
+
+    call ipos('output', 'piston_every', sc%piston_every, 0, huge(1))
+    call ipos('output', 'frame_every', sc%frame_every, 0, huge(1))
+    call ipos('output', 'distance_every', sc%distance_every, 0, huge(1))
+    call ipos('output', 'energy_every', sc%energy_every, 0, huge(1))
+    call ipos('output', 'progress_every', sc%progress_every, 0, huge(1))
+    if (sc%energy_every > 0 .and. trim(sc%wall_law) == 'slab') call bad('output', &
+         'energy_every', istr(sc%energy_every), 'must be 0 with wall_law = ''slab'' '// &
+         '(the slab law has no closed-form potential)')
+
+  contains
+
+    subroutine bad(group, key, value, rule)
+      character(len=*), intent(in) :: group, key, value, rule
+      call set_error(st, exit_bad_input, trim(path)//': &'//group//' '//key//' = '// &
+           trim(value)//': '//rule)
+    end subroutine bad
+
+    subroutine rpos(group, key, v, lo, hi, lo_closed)
+      character(len=*), intent(in) :: group, key
+      real(dp), intent(in) :: v, lo, hi
+      logical, intent(in), optional :: lo_closed
+      logical :: closed, ok
+      closed = .false.
+      if (present(lo_closed)) closed = lo_closed
+      if (closed) then
+        ok = v >= lo .and. v <= hi
+      else
+        ok = v > lo .and. v <= hi
+      end if
+      if (.not. ok) then
+        if (closed) then
+          call bad(group, key, rstr(v), 'allowed range ['//rstr(lo)//', '//rstr(hi)//']')
+        else
+          call bad(group, key, rstr(v), 'allowed range ('//rstr(lo)//', '//rstr(hi)//']')
+        end if
+      end if
+    end subroutine rpos
+
+    subroutine ipos(group, key, v, lo, hi)
+      character(len=*), intent(in) :: group, key
+      integer, intent(in) :: v, lo, hi
+      if (v < lo .or. v > hi) call bad(group, key, istr(v), &
+           'allowed range ['//istr(lo)//', '//istr(hi)//']')
+    end subroutine ipos
+
+    subroutine choice(group, key, v, allowed)
+      character(len=*), intent(in) :: group, key, v
+      character(len=*), intent(in) :: allowed(:)
+      character(len=512) :: lst
+      integer :: i
+      if (any([(trim(allowed(i)) == trim(v), i = 1, size(allowed))])) return
+      lst = ''
+      do i = 1, size(allowed)
+        lst = trim(lst)//' '''//trim(allowed(i))//''''
+      end do
+      call bad(group, key, ''''//trim(v)//'''', 'allowed values:'//trim(lst))
+    end subroutine choice
+
+  end subroutine scene_validate
+
+  function rstr(v) result(s)
+    real(dp), intent(in) :: v
+    character(len=:), allocatable :: s
+    character(len=40) :: b
+    write(b, '(g0.6)') v
+    s = trim(adjustl(b))
+  end function rstr
+
+  function istr(v) result(s)
+    integer, intent(in) :: v
+    character(len=:), allocatable :: s
+    character(len=20) :: b
+    write(b, '(i0)') v
+    s = trim(b)
+  end function istr
+
+  !> Write the fully resolved scene as a namelist the engine reads back
+  !> bit-exactly (17 significant digits), with units as comments.
+  subroutine scene_write(path, sc, st)
+    character(len=*), intent(in) :: path
+    type(scene_t), intent(in) :: sc
+    type(status_t), intent(inout) :: st
+    integer :: u, ios, k
+    open(newunit=u, file=path, status='replace', action='write', iostat=ios)
+    if (ios /= 0) then
+      call set_error(st, exit_io, trim(path)//': cannot write resolved scene')
+      return
+    end if
+    write(u, '(a)') '! resolved scene: every key with the value the engine used'
+    write(u, '(a)') '&scene'
+    call ps('kind', sc%kind, 'scene kind')
+    call ps('title', sc%title, '')
+    write(u, '(a)') '/'
+    write(u, '(a)') '&material ! SI units'
+    call pr('diameter', sc%diameter, 'm, big-particle diameter D1 (length unit)')
+    call pr('thickness', sc%thickness, 'm, magnet thickness epsilon')
+    call pr('density', sc%density, 'kg/m^3')
+    call pr('remanence', sc%remanence, 'T, residual magnetisation Br')
+    call pr('gap', sc%gap, 'm, Hele-Shaw wall separation E')
+    call pr('gravity_si', sc%gravity_si, 'm/s^2, sets the time unit T = sqrt(D1/g)')
+    write(u, '(a)') '/'
+    write(u, '(a)') '&cell ! lengths in D1'
+    call pr('width', sc%width, 'D1')
+    call pr('height', sc%height, 'D1')
+    write(u, '(a)') '/'
+    write(u, '(a)') '&particles'
+    call pi_('n', sc%n, '')
+    call pi_('seed', sc%seed, '')
+    call pr('speed_init', sc%speed_init, 'D1/T')
+    call pr('jitter', sc%jitter, 'fraction of grid spacing')
+    call pr('fill_height', sc%fill_height, 'D1 (<0: h_start)')
+    call pi_('n_species', sc%n_species, '')
+    do k = 1, sc%n_species
+      write(u, '(2x,a,i0,a,es25.17e3)') 'species_diameter(', k, ') = ', sc%species_diameter(k)
+    end do
+    call pr('mix_ratio', sc%mix_ratio, 'fraction of species 2')
+    call ps('placement', sc%placement, '')
+    write(u, '(a)') '/'
+    write(u, '(a)') '&physics'
+    call ps('pair_law', sc%pair_law, '')
+    call ps('wall_law', sc%wall_law, '')
+    call pl('gravity', sc%gravity)
+    call ps('dry_friction', sc%dry_friction, '')
+    call pr('mu_static', sc%mu_static, '')
+    call pr('mu_dynamic', sc%mu_dynamic, '')
+    call pr('v_threshold', sc%v_threshold, 'D1/T')
+    call pr('viscous_gamma', sc%viscous_gamma, 'dimensionless gamma*T/m1')
+    write(u, '(a)') '/'
+    write(u, '(a)') '&integration'
+    call ps('integrator', sc%integrator, '')
+    call ps('neighbour', sc%neighbour, '')
+    call pr('dt', sc%dt, 'T')
+    write(u, '(a)') '/'
+    write(u, '(a)') '&protocol'
+    call ps('piston', sc%piston, '')
+    call pr('h_start', sc%h_start, 'D1')
+    call pr('t_relax', sc%t_relax, 'T')
+    call pr('relax_rate', sc%relax_rate, '')
+    call pr('h0', sc%h0, 'D1')
+    call pr('hf', sc%hf, 'D1')
+    call pr('phi_final', sc%phi_final, '')
+    call pr('piston_speed', sc%piston_speed, 'D1/T')
+    call pr('t_hold', sc%t_hold, 'T')
+    call pl('expand', sc%expand)
+    call pr('t_final', sc%t_final, 'T')
+    call pr('t_end', sc%t_end, 'T')
+    write(u, '(a)') '/'
+    write(u, '(a)') '&output ! cadences in steps, 0 = off'
+    call pi_('piston_every', sc%piston_every, '')
+    call pi_('frame_every', sc%frame_every, '')
+    call pi_('distance_every', sc%distance_every, '')
+    call pi_('energy_every', sc%energy_every, '')
+    call pi_('progress_every', sc%progress_every, '')
+    write(u, '(a)') '/'
+    close(u)
+  contains
+    subroutine pr(key, v, note)
+      character(len=*), intent(in) :: key, note
+      real(dp), intent(in) :: v
+      if (len(note) > 0) then
+        write(u, '(2x,a,a,es25.17e3,a,a)') key, ' = ', v, ' ! ', note
+      else
+        write(u, '(2x,a,a,es25.17e3)') key, ' = ', v
+      end if
+    end subroutine pr
+    subroutine pi_(key, v, note)
+      character(len=*), intent(in) :: key, note
+      integer, intent(in) :: v
+      write(u, '(2x,a,a,i0)') key, ' = ', v
+      if (len(note) > 0) continue
+    end subroutine pi_
+    subroutine ps(key, v, note)
+      character(len=*), intent(in) :: key, v, note
+      write(u, '(2x,a,a,a,a)') key, ' = ''', trim(v), ''''
+      if (len(note) > 0) continue
+    end subroutine ps
+    subroutine pl(key, v)
+      character(len=*), intent(in) :: key
+      logical, intent(in) :: v
+      if (v) then
+        write(u, '(2x,a,a)') key, ' = .true.'
+      else
+        write(u, '(2x,a,a)') key, ' = .false.'
+      end if
+    end subroutine pl
+  end subroutine scene_write
+
+end module scene

@@ -1,0 +1,43 @@
+!> Dynamic state of the particle system, structure of arrays.
+module state
+  use kinds, only: dp, i8
+  implicit none
+  private
+
+  public :: state_t, state_allocate
+
+  type :: state_t
+    integer :: n = 0                       !< number of particles
+    real(dp), allocatable :: x(:), y(:)    !< positions at the current step [D1] (n)
+    real(dp), allocatable :: vx(:), vy(:)  !< velocities [D1/T] (n); meaning per integrator, see integrators
+    real(dp), allocatable :: xp(:), yp(:)  !< Stormer-Verlet: positions at step n-1; velocity Verlet: v_{n-1/2} (n)
+    real(dp), allocatable :: fx(:), fy(:)  !< total force at the current step [m1 g] (n)
+    real(dp), allocatable :: fmag(:)       !< |magnetic force| (pair + walls) [m1 g] (n), filled on demand
+    real(dp), allocatable :: s3(:)         !< sum_j mu_j sin(theta_j) r_ij^-3 (n), dry friction only
+    integer, allocatable :: species(:)     !< species index (n)
+    real(dp), allocatable :: mass(:)       !< m_i/m1 (n)
+    real(dp), allocatable :: mu(:)         !< mu_i/mu1 (n)
+    real(dp), allocatable :: wsin(:)       !< mu_i sin(theta_i) (n)
+    real(dp), allocatable :: nfac(:)       !< normal-force factor (n)
+    integer(i8) :: step = 0                !< steps done
+    real(dp) :: t = 0                      !< time of the current step [T]
+    real(dp) :: piston_h = 0               !< piston height at the current step [D1]
+    real(dp) :: piston_force = 0           !< force of the particles on the piston [m1 g]
+    integer :: phase = 0                   !< protocol phase of the current step
+    logical :: has_previous = .false.      !< xp, yp valid
+  end type state_t
+
+contains
+
+  subroutine state_allocate(s, n)
+    type(state_t), intent(inout) :: s
+    integer, intent(in) :: n
+    s%n = n
+    allocate(s%x(n), s%y(n), s%vx(n), s%vy(n), s%xp(n), s%yp(n), s%fx(n), s%fy(n), &
+         s%fmag(n), s%s3(n), s%species(n), s%mass(n), s%mu(n), s%wsin(n), s%nfac(n))
+    s%x = 0; s%y = 0; s%vx = 0; s%vy = 0; s%xp = 0; s%yp = 0
+    s%fx = 0; s%fy = 0; s%fmag = 0; s%s3 = 0
+    s%species = 1; s%mass = 1; s%mu = 1; s%wsin = 0; s%nfac = 0
+  end subroutine state_allocate
+
+end module state

@@ -1,0 +1,3 @@
+from pyorch.cli import main
+
+raise SystemExit(main())

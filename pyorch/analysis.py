@@ -1,0 +1,962 @@
+"""Structural and force analysis of particle configurations.
+
+Pure functions: arrays or pandas DataFrames in, DataFrames / Series / small dataclasses out.
+Nothing here reads files, plots or imports other ``pyorch`` modules.
+
+Units follow the engine's dimensionless form (thesis ch. 4): lengths in big-particle diameters
+``D1``, forces in big-particle weights ``m1 g``. The functions are unit-agnostic otherwise: they return
+lengths/forces in whatever units they are given.
+
+Contents
+--------
+Voronoi structure (thesis 4.2.3-4.2.4, Algorithm 4.3)
+    :func:`voronoi_cells`, :func:`polygon_fractions`, :func:`hexagon_regularity`
+Orientational order (eq. 4.28)
+    :func:`psi6`, :func:`psi6_per_particle`
+Pair structure
+    :func:`radial_distribution`, :func:`disk_rectangle_area`
+Piston (eq. 4.29)
+    :func:`min_distance_to_piston`
+Forces (eq. 4.35, Knuth's rule)
+    :func:`force_magnitudes`, :func:`force_histogram`, :func:`force_fluctuations`
+Fits (Table 4.5)
+    :func:`fit_biexponential`, :func:`fit_linear`, :func:`pearson`
+Per-frame summaries
+    :func:`frame_metrics`, :func:`time_series`
+
+Conventions shared by the Voronoi functions
+-------------------------------------------
+*Box*: a tuple ``(xmin, xmax, ymin, ymax)``. By default it is the rectangle spanned by the extreme
+particle centres (Algorithm 4.3); a cell is *interior* (kept) when it is bounded and all its vertices
+lie inside the box (inclusive, up to ``tol``).
+
+*Tolerance*: Voronoi vertices closer than ``tol`` are merged before counting sides, and two particles are
+neighbours only if their common Voronoi edge is longer than ``tol``. This makes degenerate inputs (a
+square lattice: four co-circular points give a zero-length edge, or a tiny edge after round-off or a
+1e-9 jitter) count as 4-sided cells with 4 neighbours. Default ``tol`` is ``1e-6`` times the mean
+spacing ``sqrt(area of box / N)``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from typing import Literal
+
+import numpy as np
+import pandas as pd
+from astropy.stats import knuth_bin_width
+from numpy.typing import ArrayLike, NDArray
+from scipy import stats
+from scipy.optimize import curve_fit
+from scipy.spatial import Voronoi, cKDTree
+
+__all__ = [
+    "POLYGON_CLASSES",
+    "BiexponentialFit",
+    "LinearFit",
+    "Correlation",
+    "hexagon_regularity",
+    "voronoi_cells",
+    "polygon_fractions",
+    "psi6_per_particle",
+    "psi6",
+    "disk_rectangle_area",
+    "radial_distribution",
+    "min_distance_to_piston",
+    "force_magnitudes",
+    "force_histogram",
+    "force_fluctuations",
+    "fit_biexponential",
+    "fit_linear",
+    "pearson",
+    "frame_metrics",
+    "time_series",
+]
+
+Box = tuple[float, float, float, float]
+"""Rectangle ``(xmin, xmax, ymin, ymax)`` in length units (D1)."""
+
+POLYGON_CLASSES: tuple[str, ...] = ("n_le4", "n5", "n6", "n7", "n_ge8")
+"""Names of the polygon classes returned by :func:`polygon_fractions`."""
+
+_REL_TOL = 1e-6  # default merge tolerance relative to the mean inter-particle spacing
+
+
+# --------------------------------------------------------------------------------------------------
+# small helpers
+# --------------------------------------------------------------------------------------------------
+def _as_points(points: ArrayLike) -> NDArray[np.float64]:
+    """Return ``points`` as a float array of shape (N, 2), N >= 3, all finite."""
+    p = np.asarray(points, dtype=float)
+    if p.ndim != 2 or p.shape[1] != 2:
+        raise ValueError(f"points must have shape (N, 2), got {p.shape}")
+    if p.shape[0] < 3:
+        raise ValueError(f"need at least 3 points for a Voronoi tessellation, got {p.shape[0]}")
+    if not np.all(np.isfinite(p)):
+        raise ValueError("points contain NaN or inf")
+    return p
+
+
+def _extreme_box(p: NDArray[np.float64]) -> Box:
+    """Rectangle spanned by the extreme particle centres (thesis Algorithm 4.3)."""
+    lo, hi = p.min(axis=0), p.max(axis=0)
+    return float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1])
+
+
+def _default_tol(p: NDArray[np.float64], box: Box) -> float:
+    """``_REL_TOL`` times the mean spacing ``sqrt(box area / N)`` (falls back to the box size)."""
+    w, h = box[1] - box[0], box[3] - box[2]
+    spacing = np.sqrt(w * h / len(p)) if w * h > 0 else max(w, h, 1.0)
+    return _REL_TOL * float(spacing)
+
+
+def _polygon_area(v: NDArray[np.float64]) -> float:
+    """Unsigned shoelace area of a polygon with vertices (k, 2) in boundary order."""
+    x, y = v[:, 0], v[:, 1]
+    return 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
+
+
+def _cell_polygon(vor: Voronoi, i: int, tol: float) -> NDArray[np.float64] | None:
+    """Ordered, de-duplicated vertices (k, 2) of particle ``i``'s cell; None if unbounded.
+
+    Vertices are sorted by angle about the generating point (cells are convex and contain it) and a
+    vertex is dropped when the next one is closer than ``tol`` (collapses zero-length edges).
+    """
+    region = vor.regions[vor.point_region[i]]
+    if len(region) == 0 or -1 in region:
+        return None
+    v = vor.vertices[region]
+    c = vor.points[i]
+    v = v[np.argsort(np.arctan2(v[:, 1] - c[1], v[:, 0] - c[0]))]
+    edge = np.linalg.norm(np.roll(v, -1, axis=0) - v, axis=1)
+    return v[edge > tol]
+
+
+def _neighbour_pairs(vor: Voronoi, tol: float) -> NDArray[np.intp]:
+    """Pairs (M, 2) of particles sharing a Voronoi edge longer than ``tol`` (infinite edges kept)."""
+    pairs = np.asarray(vor.ridge_points, dtype=np.intp)
+    rv = np.asarray(vor.ridge_vertices, dtype=np.intp)
+    finite = np.all(rv >= 0, axis=1)
+    length = np.full(len(rv), np.inf)
+    length[finite] = np.linalg.norm(vor.vertices[rv[finite, 0]] - vor.vertices[rv[finite, 1]], axis=1)
+    return pairs[length > tol]
+
+
+def _tessellate(points: ArrayLike, box: Box | None, tol: float | None) -> tuple[Voronoi, Box, float]:
+    """Voronoi diagram (Qhull) plus the resolved box and tolerance."""
+    p = _as_points(points)
+    box = _extreme_box(p) if box is None else tuple(float(b) for b in box)  # type: ignore[assignment]
+    tol = _default_tol(p, box) if tol is None else float(tol)
+    return Voronoi(p), box, tol
+
+
+def _ids(n: int, ids: ArrayLike | None) -> NDArray:
+    """Particle ids: ``ids`` if given (length n), else 0..n-1."""
+    if ids is None:
+        return np.arange(n)
+    out = np.asarray(ids)
+    if out.shape != (n,):
+        raise ValueError(f"ids must have shape ({n},), got {out.shape}")
+    return out
+
+
+# --------------------------------------------------------------------------------------------------
+# Voronoi cells
+# --------------------------------------------------------------------------------------------------
+def hexagon_regularity(vertices: ArrayLike) -> float:
+    r"""Hexagon regularity :math:`\mathcal{R}_6` of one polygon (thesis eq. 4.25).
+
+    .. math:: \mathcal{R}_6 = \frac{4}{\sqrt{3}} \, \frac{A}{\sum_k \ell_k^2}
+
+    with ``A`` the polygon area and ``l_k`` its side lengths. For a hexagon
+    ``R6 <= 1`` with equality only for the regular hexagon (``sum l_k^2 >= P^2/6`` by Cauchy-Schwarz and
+    ``A <= sqrt(3) P^2 / 24`` by the isoperimetric inequality for hexagons); it is scale invariant.
+
+    Definition choice: the thesis labels the metric :math:`\mathcal{R}_\ell` and later refers to it as
+    "Eq. (4.26)" (the regular-hexagon check); we implement eq. 4.25 exactly as written, i.e. the sum of
+    *squared* side lengths (not the squared perimeter of eq. 4.27). The formula is evaluated for any
+    polygon, but it is normalised for hexagons only; :func:`voronoi_cells` reports it for 6-sided
+    cells only.
+
+    Parameters
+    ----------
+    vertices : array_like, shape (k, 2), k >= 3
+        Polygon vertices in boundary order (clockwise or counter-clockwise), lengths in D1.
+
+    Returns
+    -------
+    float
+        Dimensionless regularity; 1 for a regular hexagon.
+    """
+    v = np.asarray(vertices, dtype=float)
+    if v.ndim != 2 or v.shape[1] != 2 or v.shape[0] < 3:
+        raise ValueError(f"vertices must have shape (k>=3, 2), got {v.shape}")
+    sum_l2 = float(np.sum((np.roll(v, -1, axis=0) - v) ** 2))
+    if sum_l2 == 0.0:
+        raise ValueError("degenerate polygon: all vertices coincide")
+    return 4.0 / np.sqrt(3.0) * _polygon_area(v) / sum_l2
+
+
+def _cells_table(vor: Voronoi, box: Box, tol: float, ids: NDArray) -> pd.DataFrame:
+    """Per-particle cell table from a Voronoi diagram (see :func:`voronoi_cells`)."""
+    n = len(vor.points)
+    n_sides = np.full(n, -1)
+    area = np.full(n, np.nan)
+    r6 = np.full(n, np.nan)
+    interior = np.zeros(n, dtype=bool)
+    xmin, xmax, ymin, ymax = box
+    for i in range(n):
+        v = _cell_polygon(vor, i, tol)
+        if v is None:
+            continue
+        n_sides[i] = len(v)
+        if len(v) < 3:
+            continue
+        area[i] = _polygon_area(v)
+        if len(v) == 6:
+            r6[i] = hexagon_regularity(v)
+        interior[i] = bool(
+            np.all((v[:, 0] >= xmin - tol) & (v[:, 0] <= xmax + tol)
+                   & (v[:, 1] >= ymin - tol) & (v[:, 1] <= ymax + tol))
+        )
+    return pd.DataFrame({
+        "id": ids,
+        "x": vor.points[:, 0],
+        "y": vor.points[:, 1],
+        "n_sides": pd.arrays.IntegerArray(np.maximum(n_sides, 0).astype(np.int64), n_sides < 0),
+        "area": area,
+        "R6": r6,
+        "interior": interior,
+    })
+
+
+def voronoi_cells(
+    points: ArrayLike,
+    box: Box | None = None,
+    *,
+    ids: ArrayLike | None = None,
+    tol: float | None = None,
+) -> pd.DataFrame:
+    """Voronoi cell of every particle, with the thesis' interior restriction (Algorithm 4.3).
+
+    The tessellation is computed by Qhull (``scipy.spatial.Voronoi``, default options
+    ``Qbb Qc Qz``). A cell is kept (``interior``) when it is bounded and all its vertices lie inside
+    ``box`` (inclusive, up to ``tol``).
+
+    Parameters
+    ----------
+    points : array_like, shape (N, 2)
+        Particle centres, lengths in D1.
+    box : (xmin, xmax, ymin, ymax), optional
+        Rectangle for the interior test. Default: the box spanned by the extreme particle centres.
+    ids : array_like, shape (N,), optional
+        Particle ids to report (default 0..N-1).
+    tol : float, optional
+        Vertex-merge / inclusion tolerance in D1 (default ``1e-6`` x mean spacing; see module doc).
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per particle, in input order, columns:
+        ``id``; ``x``, ``y`` (D1); ``n_sides`` (Int64, <NA> for unbounded cells); ``area`` (D1^2, NaN if
+        unbounded); ``R6`` (eq. 4.25, dimensionless, NaN unless ``n_sides == 6``); ``interior`` (bool).
+    """
+    vor, box, tol = _tessellate(points, box, tol)
+    return _cells_table(vor, box, tol, _ids(len(vor.points), ids))
+
+
+def polygon_fractions(cells: pd.DataFrame) -> pd.Series:
+    """Fractions of interior cells by number of sides.
+
+    Parameters
+    ----------
+    cells : pandas.DataFrame
+        Output of :func:`voronoi_cells` (columns ``n_sides``, ``interior``).
+
+    Returns
+    -------
+    pandas.Series
+        Index ``n_le4, n5, n6, n7, n_ge8`` (see :data:`POLYGON_CLASSES`), dimensionless fractions of the
+        interior cells; they sum to 1 (all NaN if there is no interior cell).
+    """
+    sides = cells.loc[cells["interior"].to_numpy(dtype=bool), "n_sides"].to_numpy(dtype=int)
+    counts = np.array([
+        np.sum(sides <= 4), np.sum(sides == 5), np.sum(sides == 6), np.sum(sides == 7), np.sum(sides >= 8)
+    ], dtype=float)
+    frac = counts / len(sides) if len(sides) else np.full(len(POLYGON_CLASSES), np.nan)
+    return pd.Series(frac, index=list(POLYGON_CLASSES), name="fraction")
+
+
+# --------------------------------------------------------------------------------------------------
+# Orientational order
+# --------------------------------------------------------------------------------------------------
+def _psi6_values(p: NDArray[np.float64], pairs: NDArray[np.intp]) -> tuple[NDArray[np.complex128], NDArray]:
+    """Local bond order psi6_j = mean_k exp(6 i theta_jk) over neighbour pairs; and neighbour counts."""
+    n = len(p)
+    d = p[pairs[:, 1]] - p[pairs[:, 0]]
+    z = np.exp(6j * np.arctan2(d[:, 1], d[:, 0]))  # same value for the reversed bond (6 pi = 0 mod 2 pi)
+    idx = pairs.ravel()
+    w = np.repeat(z, 2)
+    re = np.bincount(idx, weights=w.real, minlength=n)
+    im = np.bincount(idx, weights=w.imag, minlength=n)
+    nn = np.bincount(idx, minlength=n)
+    safe = np.maximum(nn, 1)
+    return np.where(nn > 0, (re + 1j * im) / safe, np.nan + 0j), nn
+
+
+def _psi6_table(vor: Voronoi, tol: float, ids: NDArray, interior: NDArray) -> pd.DataFrame:
+    """Per-particle psi6 table from a Voronoi diagram (see :func:`psi6_per_particle`)."""
+    psi, nn = _psi6_values(vor.points, _neighbour_pairs(vor, tol))
+    return pd.DataFrame({
+        "id": ids,
+        "psi6_re": psi.real,
+        "psi6_im": psi.imag,
+        "psi6_abs": np.abs(psi),
+        "n_neighbours": nn,
+        "interior": interior,
+    })
+
+
+def psi6_per_particle(
+    points: ArrayLike,
+    box: Box | None = None,
+    *,
+    ids: ArrayLike | None = None,
+    tol: float | None = None,
+) -> pd.DataFrame:
+    r"""Local bond-orientational order :math:`\psi_{6,j}` of every particle.
+
+    :math:`\psi_{6,j} = \frac{1}{n_j}\sum_k e^{6 i \theta_{jk}}`, the sum over the ``n_j`` Voronoi
+    (Delaunay) neighbours ``k`` of ``j`` that share an edge longer than ``tol``; ``theta_jk`` is the
+    angle of the bond ``j -> k`` with the x axis.
+
+    Parameters
+    ----------
+    points : array_like, shape (N, 2)
+        Particle centres (D1).
+    box, ids, tol
+        As in :func:`voronoi_cells`.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per particle: ``id``, ``psi6_re``, ``psi6_im``, ``psi6_abs`` (dimensionless),
+        ``n_neighbours`` (int), ``interior`` (bool, the cell is kept by Algorithm 4.3).
+    """
+    vor, box, tol = _tessellate(points, box, tol)
+    ids_ = _ids(len(vor.points), ids)
+    cells = _cells_table(vor, box, tol, ids_)
+    return _psi6_table(vor, tol, ids_, cells["interior"].to_numpy())
+
+
+def _psi6_reduce(table: pd.DataFrame, mode: Literal["global", "local"]) -> float:
+    """Average psi6 over interior particles: ``|<psi6_j>|`` (global) or ``<|psi6_j|>`` (local)."""
+    t = table[table["interior"].to_numpy(dtype=bool)]
+    if len(t) == 0:
+        return float("nan")
+    if mode == "global":
+        return float(np.abs(np.mean(t["psi6_re"].to_numpy() + 1j * t["psi6_im"].to_numpy())))
+    if mode == "local":
+        return float(np.mean(t["psi6_abs"].to_numpy()))
+    raise ValueError(f"mode must be 'global' or 'local', got {mode!r}")
+
+
+def psi6(
+    points: ArrayLike,
+    box: Box | None = None,
+    *,
+    mode: Literal["global", "local"] = "global",
+    tol: float | None = None,
+) -> float:
+    r"""Orientational order parameter :math:`\Psi_6` over the interior particles (eq. 4.28).
+
+    ``mode="global"`` (default): :math:`\Psi_6 = |\langle \psi_{6,j} \rangle_j|`, the modulus of the
+    mean; 1 for a perfect triangular crystal, ~``N^{-1/2}`` for a disordered (or polycrystalline)
+    system, 0 for a square lattice.
+    ``mode="local"``: :math:`\langle |\psi_{6,j}| \rangle_j`, the mean of the moduli, which is how eq.
+    4.28 is literally typeset in the thesis; it measures local hexagonal order, ignores the grain
+    orientation and is ~0.3-0.4 (not 0) for a Poisson point set.
+
+    Parameters
+    ----------
+    points : array_like, shape (N, 2)
+        Particle centres (D1).
+    box, tol
+        As in :func:`voronoi_cells`; only particles whose cell is interior are averaged (their neighbours
+        may be any particle).
+    mode : {"global", "local"}
+        Reduction, see above.
+
+    Returns
+    -------
+    float
+        Dimensionless, in [0, 1]; NaN if there is no interior particle.
+    """
+    return _psi6_reduce(psi6_per_particle(points, box, tol=tol), mode)
+
+
+# --------------------------------------------------------------------------------------------------
+# Radial distribution function
+# --------------------------------------------------------------------------------------------------
+def _s(x: NDArray, r: NDArray) -> NDArray:
+    """Antiderivative of sqrt(r^2 - x^2) for |x| <= r."""
+    return 0.5 * (x * np.sqrt(np.maximum(r * r - x * x, 0.0)) + r * r * np.arcsin(np.clip(x / r, -1, 1)))
+
+
+def _quadrant_area(a: NDArray, b: NDArray, r: NDArray) -> NDArray:
+    """Area of {x <= a, y <= b} intersected with the disk of radius r > 0 centred at the origin."""
+    a = np.clip(a, -r, r)
+    b = np.clip(b, -r, r)
+    c = np.sqrt(np.maximum(r * r - b * b, 0.0))  # |x| < c: the line y = b cuts the disk
+    u = np.clip(a, -c, c)
+    middle = b * (u + c) + _s(u, r) - _s(-c, r)  # strip |x| < c, y from -h(x) to b
+    upper = (b >= 0) * 2.0 * (_s(np.minimum(a, -c), r) - _s(-r, r) + _s(np.maximum(a, c), r) - _s(c, r))
+    return middle + upper
+
+
+def disk_rectangle_area(
+    cx: ArrayLike, cy: ArrayLike, r: ArrayLike, rect: Box
+) -> NDArray[np.float64]:
+    """Exact area of a disk intersected with an axis-aligned rectangle (broadcasting).
+
+    Parameters
+    ----------
+    cx, cy : array_like
+        Disk centre coordinates (D1).
+    r : array_like
+        Disk radius (D1), >= 0; broadcast against ``cx``/``cy``.
+    rect : (xmin, xmax, ymin, ymax)
+        Rectangle (D1).
+
+    Returns
+    -------
+    numpy.ndarray
+        Area in D1^2, shape of the broadcast inputs.
+    """
+    cx, cy, r = np.broadcast_arrays(*(np.asarray(q, dtype=float) for q in (cx, cy, r)))
+    x0, x1, y0, y1 = rect
+    rr = np.where(r > 0, r, 1.0)
+    area = (_quadrant_area(x1 - cx, y1 - cy, rr) - _quadrant_area(x0 - cx, y1 - cy, rr)
+            - _quadrant_area(x1 - cx, y0 - cy, rr) + _quadrant_area(x0 - cx, y0 - cy, rr))
+    return np.where(r > 0, area, 0.0)
+
+
+def radial_distribution(
+    points: ArrayLike,
+    box_w: float,
+    box_h: float,
+    r_max: float,
+    dr: float,
+    *,
+    origin: tuple[float, float] = (0.0, 0.0),
+) -> pd.DataFrame:
+    r"""Radial distribution function g(r) in a closed rectangular box, edge corrected.
+
+    Edge correction: exact geometric normalisation. For every reference particle ``i`` the ideal-gas
+    expectation in the shell ``[r_k, r_{k+1})`` uses the exact area of that annulus intersected with the
+    box, :math:`a_i(k) = A_i(r_{k+1}) - A_i(r_k)` with :math:`A_i(r)` = area(disk(x_i, r) ∩ box) from
+    :func:`disk_rectangle_area`. Then
+
+    .. math:: g(r_k) = \frac{\sum_i n_i(k)}{\rho \sum_i a_i(k)}, \qquad \rho = \frac{N-1}{W H},
+
+    where ``n_i(k)`` counts the other particles in the shell (ordered pairs, from a KD-tree). With
+    ``rho = (N-1)/(WH)`` uniform random points give ``g = 1`` without the ``1 - 1/N`` bias.
+
+    Parameters
+    ----------
+    points : array_like, shape (N, 2)
+        Particle centres (D1), inside the box.
+    box_w, box_h : float
+        Box width and height (D1); the box is ``[x0, x0 + box_w] x [y0, y0 + box_h]``.
+    r_max, dr : float
+        Largest distance and bin width (D1); ``round(r_max / dr)`` bins starting at 0.
+    origin : (x0, y0), optional
+        Lower-left corner of the box (D1), default (0, 0).
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per bin: ``r`` (bin centre, D1), ``r_lo``, ``r_hi`` (D1), ``g`` (dimensionless; NaN where
+        the shell does not meet the box), ``pairs`` (ordered pair count, int).
+    """
+    p = np.asarray(points, dtype=float)
+    if p.ndim != 2 or p.shape[1] != 2 or len(p) < 2:
+        raise ValueError(f"points must have shape (N>=2, 2), got {p.shape}")
+    if box_w <= 0 or box_h <= 0 or r_max <= 0 or dr <= 0:
+        raise ValueError("box_w, box_h, r_max and dr must be positive")
+    rect = (origin[0], origin[0] + box_w, origin[1], origin[1] + box_h)
+    eps = 1e-9 * max(box_w, box_h)
+    if np.any((p[:, 0] < rect[0] - eps) | (p[:, 0] > rect[1] + eps)
+              | (p[:, 1] < rect[2] - eps) | (p[:, 1] > rect[3] + eps)):
+        raise ValueError("some points lie outside the box")
+    n_bins = max(int(round(r_max / dr)), 1)
+    edges = dr * np.arange(n_bins + 1)
+    tree = cKDTree(p)
+    pairs = np.diff(tree.count_neighbors(tree, edges))  # self pairs sit at r = 0 and cancel
+    shell = np.zeros(n_bins)
+    chunk = max(1, 2_000_000 // (n_bins + 1))
+    for s in range(0, len(p), chunk):
+        q = p[s:s + chunk]
+        a = disk_rectangle_area(q[:, :1], q[:, 1:], edges[None, :], rect)
+        shell += np.diff(a, axis=1).sum(axis=0)
+    rho = (len(p) - 1) / (box_w * box_h)
+    expected = rho * shell
+    g = np.divide(pairs, expected, out=np.full(n_bins, np.nan), where=expected > 0)
+    return pd.DataFrame({
+        "r": 0.5 * (edges[:-1] + edges[1:]), "r_lo": edges[:-1], "r_hi": edges[1:], "g": g, "pairs": pairs,
+    })
+
+
+# --------------------------------------------------------------------------------------------------
+# Piston
+# --------------------------------------------------------------------------------------------------
+def min_distance_to_piston(
+    y: ArrayLike,
+    piston_h: ArrayLike,
+    species: ArrayLike | None = None,
+    *,
+    radius: ArrayLike | None = None,
+    ids: ArrayLike | None = None,
+) -> pd.DataFrame:
+    r"""Minimum particle-piston distance :math:`\delta` (thesis eq. 4.29), per frame.
+
+    :math:`\delta = \min_j (H - y_j - \rho_j)`, with ``H`` the piston height, ``y_j`` the particle
+    centre height and ``rho_j`` its radius (0 by default, i.e. centre-to-piston distance).
+
+    Parameters
+    ----------
+    y : array_like, shape (N,) or (T, N)
+        Particle centre heights (D1) for one frame or T frames.
+    piston_h : float or array_like, shape (T,)
+        Piston height (D1) per frame.
+    species : array_like, shape (N,) or (T, N), optional
+        Species label per particle; adds one ``delta_<label>`` column per species and ``species_min``.
+    radius : array_like, shape (N,) or (T, N), optional
+        Particle radii (D1) to measure the surface gap instead of the centre distance.
+    ids : array_like, shape (N,) or (T, N), optional
+        Particle ids for ``id_min`` (default: column index 0..N-1).
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per frame (index ``frame`` = 0..T-1): ``delta`` (D1), ``id_min`` (particle attaining it),
+        ``species_min`` and ``delta_<label>`` (D1) when ``species`` is given.
+    """
+    yy = np.atleast_2d(np.asarray(y, dtype=float))
+    t, n = yy.shape
+    h = np.broadcast_to(np.asarray(piston_h, dtype=float).reshape(-1, 1), (t, 1))
+    gap = h - yy
+    if radius is not None:
+        gap = gap - np.broadcast_to(np.asarray(radius, dtype=float), (t, n))
+    id_arr = np.broadcast_to(np.arange(n) if ids is None else np.asarray(ids), (t, n))
+    arg = np.argmin(gap, axis=1)
+    rows = np.arange(t)
+    out = pd.DataFrame({"delta": gap[rows, arg], "id_min": id_arr[rows, arg]})
+    if species is not None:
+        sp = np.broadcast_to(np.asarray(species), (t, n))
+        out["species_min"] = sp[rows, arg]
+        for label in np.unique(sp):
+            out[f"delta_{label}"] = np.where(sp == label, gap, np.inf).min(axis=1)
+    out.index.name = "frame"
+    return out
+
+
+# --------------------------------------------------------------------------------------------------
+# Forces
+# --------------------------------------------------------------------------------------------------
+def force_magnitudes(fx: ArrayLike, fy: ArrayLike) -> NDArray[np.float64]:
+    """Force magnitudes ``sqrt(fx^2 + fy^2)``.
+
+    Parameters
+    ----------
+    fx, fy : array_like, same shape
+        Force components (m1 g).
+
+    Returns
+    -------
+    numpy.ndarray
+        Magnitudes (m1 g), same shape as the inputs.
+    """
+    return np.hypot(np.asarray(fx, dtype=float), np.asarray(fy, dtype=float))
+
+
+def force_histogram(values: ArrayLike, species: ArrayLike | None = None) -> pd.DataFrame:
+    """Histogram and PDF of force values with Knuth's-rule bins (thesis Figs. 4.21-4.22, eq. 4.33).
+
+    The bin edges are ``astropy.stats.knuth_bin_width(values, return_bins=True)`` computed on *all*
+    values (so species share the bins); counts per species use those common edges.
+
+    Parameters
+    ----------
+    values : array_like, shape (N,)
+        Force values (m1 g, or normalised, dimensionless), finite.
+    species : array_like, shape (N,), optional
+        Species label per value; default: every value belongs to species ``"all"``.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Long table, one row per (species, bin): ``species``, ``bin`` (0-based), ``left``, ``right``,
+        ``center`` (units of ``values``), ``count`` (int; sums to the species' number of values),
+        ``pdf`` (count / (N_species * width): the species' own normalised density) and ``pdf_share``
+        (count / (N * width): the species' part of the overall density; shares add to the overall PDF).
+    """
+    v = np.asarray(values, dtype=float).ravel()
+    if len(v) < 2 or not np.all(np.isfinite(v)):
+        raise ValueError("values must hold at least 2 finite numbers")
+    sp = np.full(len(v), "all", dtype=object) if species is None else np.asarray(species).ravel()
+    if sp.shape != v.shape:
+        raise ValueError("species must have the same length as values")
+    _, edges = knuth_bin_width(v, return_bins=True)
+    width = np.diff(edges)
+    frames = []
+    for label in np.unique(sp):
+        counts, _ = np.histogram(v[sp == label], bins=edges)
+        frames.append(pd.DataFrame({
+            "species": label,
+            "bin": np.arange(len(counts)),
+            "left": edges[:-1],
+            "right": edges[1:],
+            "center": 0.5 * (edges[:-1] + edges[1:]),
+            "count": counts,
+            "pdf": counts / (counts.sum() * width),
+            "pdf_share": counts / (len(v) * width),
+        }))
+    return pd.concat(frames, ignore_index=True)
+
+
+def force_fluctuations(
+    frames: pd.DataFrame, *, per_frame: bool = True, mask: str | None = None
+) -> pd.DataFrame:
+    r"""Relative force fluctuations :math:`|F_i^k - \bar F_i| / \bar F_i` (thesis eq. 4.35).
+
+    ``F_i^k`` is the force magnitude on particle ``k`` of species ``i`` and ``\bar F_i`` the mean
+    magnitude over the particles of species ``i`` (per frame by default).
+
+    Parameters
+    ----------
+    frames : pandas.DataFrame
+        Long table with columns ``step``, ``id``, ``fx``, ``fy`` (m1 g) and optionally ``species``
+        (without it all particles form one species).
+    per_frame : bool, default True
+        Average over the particles of each (step, species); if False, over all frames of a species.
+    mask : str, optional
+        Name of a boolean column (e.g. the Voronoi ``interior`` flag). Rows where it is False are left
+        out of the average and get fluctuation 0, as in the thesis' Fig. 4.24.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Same rows and order as ``frames``: ``step``, ``id``, ``species`` (if present), ``F`` and
+        ``F_mean`` (m1 g), ``fluctuation`` (dimensionless; NaN where ``F_mean`` is 0).
+    """
+    missing = {"step", "id", "fx", "fy"} - set(frames.columns)
+    if missing:
+        raise ValueError(f"frames lacks columns {sorted(missing)}")
+    keys = ["step"] if per_frame else []
+    if "species" in frames.columns:
+        keys.append("species")
+    out = frames[["step", "id"] + (["species"] if "species" in frames.columns else [])].copy()
+    out["F"] = force_magnitudes(frames["fx"], frames["fy"])
+    use = np.ones(len(frames), dtype=bool) if mask is None else frames[mask].to_numpy(dtype=bool)
+    masked = out["F"].where(use)
+    if keys:
+        out["F_mean"] = masked.groupby([out[k] for k in keys], sort=False).transform("mean")
+    else:
+        out["F_mean"] = masked.mean()
+    f, fm = out["F"].to_numpy(), out["F_mean"].to_numpy(dtype=float)
+    fluct = np.divide(np.abs(f - fm), fm, out=np.full(len(f), np.nan), where=fm > 0)
+    out["fluctuation"] = np.where(use, fluct, 0.0)
+    return out
+
+
+# --------------------------------------------------------------------------------------------------
+# Fits
+# --------------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class BiexponentialFit:
+    """Result of :func:`fit_biexponential`: ``A exp(lambda1 x) + B exp(lambda2 x)``, lambda1 <= lambda2.
+
+    ``*_err`` are 1-sigma uncertainties (sqrt of the covariance diagonal); ``r2`` the coefficient of
+    determination.
+    """
+
+    A: float
+    lambda1: float
+    B: float
+    lambda2: float
+    A_err: float
+    lambda1_err: float
+    B_err: float
+    lambda2_err: float
+    r2: float
+
+    def __call__(self, x: ArrayLike) -> NDArray[np.float64]:
+        """Evaluate the fitted curve at ``x``."""
+        x = np.asarray(x, dtype=float)
+        return self.A * np.exp(self.lambda1 * x) + self.B * np.exp(self.lambda2 * x)
+
+    def to_series(self) -> pd.Series:
+        """Parameters, errors and r2 as a Series."""
+        return pd.Series(asdict(self), dtype=float)
+
+
+@dataclass(frozen=True)
+class LinearFit:
+    """Result of :func:`fit_linear`: ``slope * x + intercept`` with 1-sigma errors and ``r2``."""
+
+    slope: float
+    intercept: float
+    slope_err: float
+    intercept_err: float
+    r2: float
+
+    def __call__(self, x: ArrayLike) -> NDArray[np.float64]:
+        """Evaluate the fitted line at ``x``."""
+        return self.slope * np.asarray(x, dtype=float) + self.intercept
+
+    def to_series(self) -> pd.Series:
+        """Parameters, errors and r2 as a Series."""
+        return pd.Series(asdict(self), dtype=float)
+
+
+@dataclass(frozen=True)
+class Correlation:
+    """Result of :func:`pearson`: coefficient ``r``, two-sided ``p_value``, sample size ``n``."""
+
+    r: float
+    p_value: float
+    n: int
+
+    def to_series(self) -> pd.Series:
+        """Fields as a Series."""
+        return pd.Series(asdict(self), dtype=float)
+
+
+def _xy(x: ArrayLike, y: ArrayLike, n_min: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Finite float 1-D arrays of equal length >= n_min."""
+    xa, ya = np.asarray(x, dtype=float).ravel(), np.asarray(y, dtype=float).ravel()
+    if xa.shape != ya.shape or len(xa) < n_min:
+        raise ValueError(f"x and y must have the same length >= {n_min}")
+    if not (np.all(np.isfinite(xa)) and np.all(np.isfinite(ya))):
+        raise ValueError("x and y must be finite")
+    return xa, ya
+
+
+def _r2(y: NDArray, model: NDArray) -> float:
+    """Coefficient of determination 1 - SS_res / SS_tot (NaN for constant y)."""
+    ss_tot = float(np.sum((y - y.mean()) ** 2))
+    return 1.0 - float(np.sum((y - model) ** 2)) / ss_tot if ss_tot > 0 else float("nan")
+
+
+def _biexp(x: NDArray, a: float, l1: float, b: float, l2: float) -> NDArray:
+    return a * np.exp(l1 * x) + b * np.exp(l2 * x)
+
+
+def _biexp_guesses(u: NDArray, y: NDArray, n_grid: int = 61, n_keep: int = 5) -> list[NDArray]:
+    """Initial (A, l1, B, l2) candidates by variable projection on a rate grid (u = x - x.min() >= 0).
+
+    For every pair l1 < l2 on a grid of rates ``lambda * span`` in [-15, 15] the amplitudes are
+    linear: solve them by least squares; return the ``n_keep`` pairs with the smallest residuals, best
+    first.
+    """
+    span = float(u.max()) or 1.0
+    rates = np.linspace(-15.0, 15.0, n_grid) / span
+    basis = np.exp(np.outer(u, rates))  # (n, n_grid)
+    found = []
+    for i in range(n_grid):
+        for j in range(i + 1, n_grid):
+            m = basis[:, (i, j)]
+            coef, *_ = np.linalg.lstsq(m, y, rcond=None)
+            sse = float(np.sum((m @ coef - y) ** 2))
+            found.append((sse, np.array([coef[0], rates[i], coef[1], rates[j]])))
+    found.sort(key=lambda item: item[0])
+    return [p for _, p in found[:n_keep]]
+
+
+def _curve_fit_first(
+    starts: list[NDArray], u: NDArray, y: NDArray, sigma: ArrayLike | None
+) -> tuple[NDArray, NDArray]:
+    """``curve_fit`` of the bi-exponential from the first start that converges."""
+    for k, q0 in enumerate(starts):
+        try:
+            return curve_fit(_biexp, u, y, p0=q0, sigma=sigma, maxfev=20000)
+        except RuntimeError:
+            if k == len(starts) - 1:
+                raise
+    raise ValueError("no initial guess")
+
+
+def fit_biexponential(
+    x: ArrayLike, y: ArrayLike, *, sigma: ArrayLike | None = None, p0: ArrayLike | None = None
+) -> BiexponentialFit:
+    r"""Least-squares fit of :math:`A e^{\lambda_1 x} + B e^{\lambda_2 x}` (thesis Table 4.5).
+
+    Initial guesses (unless ``p0``) come from a variable-projection grid search over the two rates
+    (amplitudes solved linearly for each pair of rates on a grid spanning ``|lambda| * span(x) <= 15``),
+    then ``scipy.optimize.curve_fit`` refines all four parameters (starting from the next-best grid
+    points if the best one does not converge). The fit runs in the shifted variable
+    ``u = x - min(x)`` for conditioning; amplitudes and covariance are transformed back exactly.
+    Components are ordered so that ``lambda1 <= lambda2``.
+
+    Parameters
+    ----------
+    x, y : array_like, shape (n,), n >= 5
+        Abscissa (e.g. mixing ratio R) and data (e.g. F_max / F_max^{R=1}).
+    sigma : array_like, shape (n,), optional
+        Standard deviations of ``y`` (relative weights, passed to ``curve_fit``).
+    p0 : array_like, shape (4,), optional
+        Initial ``(A, lambda1, B, lambda2)`` in the original ``x`` variable.
+
+    Returns
+    -------
+    BiexponentialFit
+        Parameters (units: A, B of ``y``; lambdas of 1/x), 1-sigma errors and R^2.
+    """
+    xa, ya = _xy(x, y, 5)
+    x0 = float(xa.min())
+    u = xa - x0
+    if p0 is None:
+        starts = _biexp_guesses(u, ya)
+    else:
+        a, l1, b, l2 = np.asarray(p0, dtype=float)
+        starts = [np.array([a * np.exp(l1 * x0), l1, b * np.exp(l2 * x0), l2])]
+    q, qcov = _curve_fit_first(starts, u, ya, sigma)
+    if q[1] > q[3]:
+        perm = [2, 3, 0, 1]
+        q, qcov = q[perm], qcov[np.ix_(perm, perm)]
+    a1, a2 = np.exp(-q[1] * x0), np.exp(-q[3] * x0)
+    params = np.array([q[0] * a1, q[1], q[2] * a2, q[3]])
+    jac = np.array([
+        [a1, -x0 * q[0] * a1, 0.0, 0.0],
+        [0.0, 1.0, 0.0, 0.0],
+        [0.0, 0.0, a2, -x0 * q[2] * a2],
+        [0.0, 0.0, 0.0, 1.0],
+    ])
+    err = np.sqrt(np.diag(jac @ qcov @ jac.T))
+    r2 = _r2(ya, _biexp(u, *q))
+    return BiexponentialFit(*map(float, params), *map(float, err), r2=r2)
+
+
+def fit_linear(x: ArrayLike, y: ArrayLike) -> LinearFit:
+    """Ordinary least-squares line ``y = slope x + intercept`` (e.g. F_max vs N).
+
+    Uses ``scipy.stats.linregress``; errors are its 1-sigma standard errors, ``r2 = rvalue**2``.
+
+    Parameters
+    ----------
+    x, y : array_like, shape (n,), n >= 3
+        Data (any units; slope in y/x).
+
+    Returns
+    -------
+    LinearFit
+    """
+    xa, ya = _xy(x, y, 3)
+    res = stats.linregress(xa, ya)
+    return LinearFit(float(res.slope), float(res.intercept), float(res.stderr),
+                     float(res.intercept_stderr), float(res.rvalue) ** 2)
+
+
+def pearson(x: ArrayLike, y: ArrayLike) -> Correlation:
+    """Pearson correlation (e.g. n6 vs Psi6) with its two-sided p-value (``scipy.stats.pearsonr``).
+
+    Parameters
+    ----------
+    x, y : array_like, shape (n,), n >= 3
+        Samples (any units), not constant.
+
+    Returns
+    -------
+    Correlation
+    """
+    xa, ya = _xy(x, y, 3)
+    res = stats.pearsonr(xa, ya)
+    return Correlation(float(res.statistic), float(res.pvalue), len(xa))
+
+
+# --------------------------------------------------------------------------------------------------
+# Per-frame summaries
+# --------------------------------------------------------------------------------------------------
+def frame_metrics(
+    frame_df: pd.DataFrame,
+    piston_h: float | None = None,
+    *,
+    box: Box | None = None,
+    tol: float | None = None,
+) -> pd.Series:
+    """Structural summary of one particle frame.
+
+    Parameters
+    ----------
+    frame_df : pandas.DataFrame
+        One frame: columns ``x``, ``y`` (D1); optional ``id``, ``species``, ``radius`` (D1).
+    piston_h : float, optional
+        Piston height (D1); adds ``delta`` (eq. 4.29) and, with ``species``, ``delta_<label>``.
+    box, tol
+        As in :func:`voronoi_cells` (default box: extreme particle centres).
+
+    Returns
+    -------
+    pandas.Series
+        ``n_interior`` (number of kept cells), ``n_le4``, ``n5``, ``n6``, ``n7``, ``n_ge8`` (fractions),
+        ``R6_mean``, ``R6_std`` (over interior hexagons, population std; NaN if none), ``Psi6`` (global,
+        ``|<psi6>|``), ``Psi6_local`` (``<|psi6|>``), plus ``delta`` columns (D1) if ``piston_h`` is given.
+    """
+    p = frame_df[["x", "y"]].to_numpy(dtype=float)
+    vor, box, tol = _tessellate(p, box, tol)
+    ids = _ids(len(p), frame_df["id"].to_numpy() if "id" in frame_df.columns else None)
+    cells = _cells_table(vor, box, tol, ids)
+    interior = cells["interior"].to_numpy()
+    table = _psi6_table(vor, tol, ids, interior)
+    r6 = cells.loc[interior, "R6"].dropna().to_numpy()
+    out = {"n_interior": float(interior.sum()), **polygon_fractions(cells).to_dict()}
+    out["R6_mean"] = float(r6.mean()) if len(r6) else float("nan")
+    out["R6_std"] = float(r6.std()) if len(r6) else float("nan")
+    out["Psi6"] = _psi6_reduce(table, "global")
+    out["Psi6_local"] = _psi6_reduce(table, "local")
+    if piston_h is not None:
+        sp = frame_df["species"].to_numpy() if "species" in frame_df.columns else None
+        rad = frame_df["radius"].to_numpy(dtype=float) if "radius" in frame_df.columns else None
+        d = min_distance_to_piston(p[:, 1], piston_h, sp, radius=rad, ids=ids)
+        out.update({c: float(d[c].iloc[0]) for c in d.columns if c.startswith("delta")})
+    return pd.Series(out, dtype=float)
+
+
+def time_series(
+    frames_df: pd.DataFrame,
+    *,
+    piston_col: str | None = None,
+    box: Box | None = None,
+    tol: float | None = None,
+) -> pd.DataFrame:
+    """:func:`frame_metrics` for every frame of a trajectory.
+
+    Parameters
+    ----------
+    frames_df : pandas.DataFrame
+        Long table, one row per (frame, particle): columns ``step``, ``x``, ``y`` and usually ``t``,
+        ``id``, ``species``; grouped by ``step``.
+    piston_col : str, optional
+        Column holding the piston height (D1) per row (constant within a frame); enables ``delta``.
+    box, tol
+        Passed to :func:`frame_metrics` (default box: per-frame extreme centres).
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per frame, indexed by ``t`` (or by ``step`` if there is no ``t`` column), with a ``step``
+        column and the :func:`frame_metrics` columns.
+    """
+    rows = []
+    for step, g in frames_df.groupby("step", sort=True):
+        h = float(g[piston_col].iloc[0]) if piston_col is not None else None
+        s = frame_metrics(g, h, box=box, tol=tol)
+        head = {"step": step}
+        if "t" in g.columns:
+            head["t"] = float(g["t"].iloc[0])
+        rows.append({**head, **s.to_dict()})
+    out = pd.DataFrame(rows)
+    if "t" in out.columns:
+        return out.set_index("t")
+    return out.set_index("step", drop=False)

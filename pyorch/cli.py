@@ -1,0 +1,80 @@
+"""Command line: ``pyorch run|check|plot``.
+
+    pyorch run SCENE.nml [--out DIR] [--set group.key=value ...] [--door exe|f2py] [--no-plots]
+    pyorch check SCENE.nml [--set ...]
+    pyorch plot RUN_DIR [--out DIR]
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from pyorch import RunError, SceneError
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="pyorch", description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = p.add_subparsers(dest="cmd", required=True)
+
+    r = sub.add_parser("run", help="run a scene (namelist) into a run directory")
+    r.add_argument("scene", type=Path)
+    r.add_argument("--out", type=Path, default=None, help="run directory (default runs/out/<scene>)")
+    r.add_argument("--set", dest="overrides", action="append", default=[], metavar="GROUP.KEY=VALUE")
+    r.add_argument("--door", choices=["exe", "f2py"], default="exe")
+    r.add_argument("--no-plots", action="store_true")
+    r.add_argument("--quiet", action="store_true", help="no progress bar")
+
+    c = sub.add_parser("check", help="validate a scene through the engine")
+    c.add_argument("scene", type=Path)
+    c.add_argument("--set", dest="overrides", action="append", default=[], metavar="GROUP.KEY=VALUE")
+
+    pl = sub.add_parser("plot", help="write the standard figures of a run directory")
+    pl.add_argument("run_dir", type=Path)
+    pl.add_argument("--out", type=Path, default=None)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    try:
+        if args.cmd == "run":
+            return _cmd_run(args)
+        if args.cmd == "check":
+            from pyorch.scene import Scene, validate
+
+            info = validate(Scene.read(args.scene).with_overrides(args.overrides))
+            print(f"ok: {info['n_particles']} particles, {info['n_steps']} steps")
+            return 0
+        if args.cmd == "plot":
+            from pyorch.plots import save_run_plots
+
+            for p in save_run_plots(args.run_dir, args.out):
+                print(p)
+            return 0
+    except SceneError as exc:
+        print(f"pyorch: error: {exc}", file=sys.stderr)
+        return 2
+    except RunError as exc:
+        print(f"pyorch: error: {exc}", file=sys.stderr)
+        return 3
+    return 1
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    from pyorch.run import run
+    from pyorch.scene import Scene
+
+    scene = Scene.read(args.scene).with_overrides(args.overrides)
+    out = args.out or Path("runs") / "out" / args.scene.stem
+    result = run(scene, out, door=args.door, progress=not args.quiet)
+    meta = result.meta
+    print(f"{out}: {meta['status']}, {meta['steps_done']} steps, "
+          f"{meta['wall_time_s']:.2f} s ({1e6 * meta['wall_time_per_step_s']:.1f} us/step)")
+    if not args.no_plots:
+        from pyorch.plots import save_run_plots
+
+        paths = save_run_plots(out)
+        print(f"{len(paths)} plots in {out / 'plots'}")
+    return 0

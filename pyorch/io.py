@@ -1,0 +1,108 @@
+"""Readers of a run directory. Every .dat file has two header lines: a
+description with the unit scales, then the columns as ``name[unit]``.
+Loaders return pandas DataFrames with plain column names; the units are in
+``df.attrs["units"]`` (column -> unit string).
+"""
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+_COL = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)(?:\[(.*)\])?$")
+
+
+def read_header(path: str | Path) -> tuple[list[str], dict[str, str], str]:
+    """Column names, their units and the description line of a .dat file."""
+    desc, cols = "", ""
+    with open(path, encoding="utf-8") as fh:
+        for line in fh:
+            if not line.startswith("#"):
+                break
+            desc, cols = cols or desc, line
+            if not desc:
+                desc = line
+    names, units = [], {}
+    for tok in cols.lstrip("#").split():
+        m = _COL.match(tok)
+        if not m:
+            raise ValueError(f"{path}: malformed column header token {tok!r}")
+        names.append(m.group(1))
+        units[m.group(1)] = m.group(2) or ""
+    return names, units, desc.lstrip("# ").strip()
+
+
+def read_dat(path: str | Path) -> pd.DataFrame:
+    """Load one .dat file (whitespace separated, '#' header) as a DataFrame."""
+    path = Path(path)
+    names, units, desc = read_header(path)
+    df = pd.read_csv(path, sep=r"\s+", comment="#", header=None, names=names,
+                     engine="c")
+    for c in ("step", "id", "species", "phase"):
+        if c in df.columns:
+            df[c] = df[c].astype(np.int64)
+    df.attrs["units"] = units
+    df.attrs["description"] = desc
+    return df
+
+
+def read_run_json(run_dir: str | Path) -> dict[str, Any]:
+    """Run metadata: status, steps, wall time, unit scales, groups."""
+    with open(Path(run_dir) / "run.json", encoding="utf-8") as fh:
+        return json.load(fh)
+
+
+def piston(run_dir: str | Path) -> pd.DataFrame:
+    """piston.dat: step, t [T], H [D1], F_piston [m1 g], phi [1], phase."""
+    return read_dat(Path(run_dir) / "piston.dat")
+
+
+def frames(run_dir: str | Path) -> pd.DataFrame:
+    """particles.dat (long format): step, t, id, species, x, y, vx, vy, fx, fy, fmag."""
+    return read_dat(Path(run_dir) / "particles.dat")
+
+
+def mean_distance(run_dir: str | Path) -> pd.DataFrame:
+    """mean_distance.dat: step, t [T], D_hat [D1]."""
+    return read_dat(Path(run_dir) / "mean_distance.dat")
+
+
+def energy(run_dir: str | Path) -> pd.DataFrame:
+    """energy.dat: step, t, E_kin, E_pair, E_wall, E_grav, E_total [m1 g D1]."""
+    return read_dat(Path(run_dir) / "energy.dat")
+
+
+def frame_at(frames_df: pd.DataFrame, step: int | None = None) -> pd.DataFrame:
+    """One frame (the last one when step is None), sorted by particle id."""
+    steps = frames_df["step"].unique()
+    if step is None:
+        step = int(steps.max())
+    sel = frames_df[frames_df["step"] == step]
+    if sel.empty:
+        raise KeyError(f"no frame at step {step}; frames at {steps[:5]}...")
+    return sel.sort_values("id").reset_index(drop=True)
+
+
+PHASES = {0: "steady", 1: "relax", 2: "compress", 3: "hold", 4: "expand", 5: "final"}
+
+
+def stroke(piston_df: pd.DataFrame) -> pd.DataFrame:
+    """Compression-expansion cycle in thesis variables (Fig. 3.3a).
+
+    Returns rows of phases compress/hold/expand with y_P = H0 - H (stroke
+    [D1]), y_P/y_F (y_F: maximum stroke), F/F_max and the phase name.
+    """
+    cyc = piston_df[piston_df["phase"].isin([2, 3, 4])].copy()
+    if cyc.empty:
+        raise ValueError("piston history has no compression phase")
+    h0 = float(cyc["H"].iloc[0])
+    cyc["y_P"] = h0 - cyc["H"]
+    y_f = float(cyc["y_P"].max())
+    cyc["y_P_over_y_F"] = cyc["y_P"] / y_f
+    cyc["F_over_F_max"] = cyc["F_piston"] / float(cyc["F_piston"].max())
+    cyc["phase_name"] = cyc["phase"].map(PHASES)
+    return cyc.reset_index(drop=True)
