@@ -116,7 +116,7 @@ contains
     logical, intent(in) :: need_fmag
     type(status_t), intent(inout) :: st
     integer :: bad
-    character(len=300) :: buf
+    character(len=800) :: buf
     associate (s => sim%s, m => sim%m)
       s%fx = 0
       s%fy = 0
@@ -194,6 +194,7 @@ contains
       if (last) return
       call advance(m%integrator, m%dt, s)
       s%step = s%step + 1
+      s%t = real(s%step, dp)*m%dt
     end associate
   end subroutine sim_step
 

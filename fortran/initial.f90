@@ -58,7 +58,7 @@ contains
     real(dp) :: wa, ha, sx, sy, u(2), ang, ymax, dmax
     integer :: nc, nr, i, k, j, tmp
     integer, allocatable :: perm(:)
-    character(len=200) :: buf
+    character(len=800) :: buf
 
     call state_allocate(s, sc%n)
     call seed_rng(sc%seed)

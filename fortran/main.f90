@@ -3,9 +3,17 @@
 !> Exit codes: 0 ok, 2 bad input (nothing written), 3 numerical guard, 4 I/O.
 program magbed
   use, intrinsic :: iso_fortran_env, only: error_unit, output_unit
+  use, intrinsic :: iso_c_binding, only: c_int
   use errors, only: status_t, exit_bad_input
   use engine, only: sim_t, sim_load, sim_execute
   implicit none
+  interface
+    !> libc exit: a non-zero status without gfortran's "ERROR STOP"/backtrace noise
+    subroutine c_exit(status) bind(C, name='exit')
+      import :: c_int
+      integer(c_int), value :: status
+    end subroutine c_exit
+  end interface
   type(status_t) :: st
   type(sim_t) :: sim
   character(len=4096) :: arg, path, dir
@@ -53,7 +61,7 @@ program magbed
   if (st%code /= 0) then
     write(error_unit, '(a)') 'magbed: error: '//trim(st%msg)
     flush(error_unit)
-    error stop st%code, quiet=.true.
+    call c_exit(int(st%code, c_int))
   end if
 
 contains
@@ -62,7 +70,8 @@ contains
     character(len=*), intent(in) :: msg
     write(error_unit, '(a)') 'magbed: error: '//msg
     write(error_unit, '(a)') 'usage: magbed SCENE.nml [--out DIR] [--check] [--quiet]'
-    error stop exit_bad_input, quiet=.true.
+    flush(error_unit)
+    call c_exit(int(exit_bad_input, c_int))
   end subroutine usage
 
 end program magbed

@@ -15,7 +15,7 @@ module output
 
   type :: output_t
     character(len=:), allocatable :: dir
-    integer :: u_piston = -1, u_frame = -1, u_dist = -1, u_energy = -1
+    integer :: u_piston = -1, u_frame = -1, u_dist = -1, u_energy = -1  !< -1: not open (newunit never returns -1)
   end type output_t
 
   interface
@@ -87,18 +87,18 @@ contains
 
   subroutine output_flush(o)
     type(output_t), intent(in) :: o
-    if (o%u_piston > 0) flush(o%u_piston)
-    if (o%u_frame > 0) flush(o%u_frame)
-    if (o%u_dist > 0) flush(o%u_dist)
-    if (o%u_energy > 0) flush(o%u_energy)
+    if (o%u_piston /= -1) flush(o%u_piston)
+    if (o%u_frame /= -1) flush(o%u_frame)
+    if (o%u_dist /= -1) flush(o%u_dist)
+    if (o%u_energy /= -1) flush(o%u_energy)
   end subroutine output_flush
 
   subroutine output_close(o)
     type(output_t), intent(inout) :: o
-    if (o%u_piston > 0) close(o%u_piston)
-    if (o%u_frame > 0) close(o%u_frame)
-    if (o%u_dist > 0) close(o%u_dist)
-    if (o%u_energy > 0) close(o%u_energy)
+    if (o%u_piston /= -1) close(o%u_piston)
+    if (o%u_frame /= -1) close(o%u_frame)
+    if (o%u_dist /= -1) close(o%u_dist)
+    if (o%u_energy /= -1) close(o%u_energy)
     o%u_piston = -1; o%u_frame = -1; o%u_dist = -1; o%u_energy = -1
   end subroutine output_close
 

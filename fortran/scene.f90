@@ -387,12 +387,70 @@ contains
 
   end subroutine scene_validate
 
+  !> Shortest decimal text that reads back to exactly v (e.g. 0.5, -1, 1e-07).
   function rstr(v) result(s)
     real(dp), intent(in) :: v
     character(len=:), allocatable :: s
-    character(len=40) :: b
-    write(b, '(g0.6)') v
-    s = trim(adjustl(b))
+    character(len=40) :: b, fmt
+    real(dp) :: w
+    integer :: p, ios, e
+    if (v /= v) then
+      s = 'NaN'
+      return
+    end if
+    if (abs(v) > huge(v)) then
+      s = merge('+Infinity', '-Infinity', v > 0)
+      return
+    end if
+    do p = 1, 17
+      write(fmt, '(a,i0,a)') '(es30.', p - 1, 'e3)'
+      write(b, fmt) v
+      read(b, *, iostat=ios) w
+      if (ios == 0 .and. w == v) exit
+    end do
+    b = adjustl(b)
+    e = index(b, 'E')
+    s = b(1:e - 1)
+    if (index(s, '.') > 0) then       ! strip trailing zeros of the mantissa
+      do while (s(len(s):len(s)) == '0')
+        s = s(1:len(s) - 1)
+      end do
+      if (s(len(s):len(s)) == '.') s = s(1:len(s) - 1)
+    end if
+    read(b(e + 1:), *) p
+    s = positional(s, p)
+  contains
+    !> mantissa text m (e.g. '-6.708') times 10^p, as 67.08 or 1e-07 style.
+    function positional(m, p) result(r)
+      character(len=*), intent(in) :: m
+      integer, intent(in) :: p
+      character(len=:), allocatable :: r, digits, sgn
+      character(len=12) :: ex
+      integer :: k
+      sgn = ''
+      digits = m
+      if (m(1:1) == '-') then
+        sgn = '-'
+        digits = m(2:)
+      end if
+      k = index(digits, '.')
+      if (k > 0) digits = digits(1:k - 1)//digits(k + 1:)
+      if (p >= 0 .and. p < 15) then
+        do while (len(digits) < p + 1)
+          digits = digits//'0'
+        end do
+        if (len(digits) > p + 1) then
+          r = sgn//digits(1:p + 1)//'.'//digits(p + 2:)
+        else
+          r = sgn//digits
+        end if
+      else if (p < 0 .and. p > -5) then
+        r = sgn//'0.'//repeat('0', -p - 1)//digits
+      else
+        write(ex, '(i0)') p
+        r = m//'e'//trim(ex)
+      end if
+    end function positional
   end function rstr
 
   function istr(v) result(s)

@@ -1,0 +1,83 @@
+"""Bad input gets one clear line naming file, group, key, value and range."""
+from __future__ import annotations
+
+import subprocess
+
+import pytest
+
+from pyorch import SceneError
+from pyorch.run import engine_executable
+from pyorch.scene import Scene, parse_override, validate
+from pathlib import Path
+
+RUNS = Path(__file__).resolve().parents[1] / "runs"
+
+BAD = [
+    ({"particles.n": 0}, r"&particles n = 0: allowed range \[1,"),
+    ({"particles.n": -5}, r"&particles n = -5"),
+    ({"integration.dt": 0.0}, r"&integration dt = 0"),
+    ({"integration.integrator": "rk4"}, r"&integration integrator = 'rk4': allowed values"),
+    ({"physics.wall_law": "magic"}, r"&physics wall_law = 'magic'"),
+    ({"physics.pair_law": "lj"}, r"&physics pair_law = 'lj'"),
+    ({"physics.dry_friction": "third_order"}, r"&physics dry_friction"),
+    ({"physics.mu_static": -0.1}, r"&physics mu_static = -0.1"),
+    ({"physics.mu_dynamic": -1.0}, r"&physics mu_dynamic"),
+    ({"physics.viscous_gamma": -1.0}, r"&physics viscous_gamma"),
+    ({"protocol.hf": 80.0}, r"&protocol hf = 80"),
+    ({"protocol.hf": -1.0}, r"&protocol hf"),
+    ({"protocol.h_start": 100.0}, r"&protocol h_start = 100"),
+    ({"protocol.h0": 80.0}, r"&protocol h0 = 80"),
+    ({"protocol.phi_final": 1.2}, r"&protocol phi_final = 1.2"),
+    ({"protocol.piston_speed": 0.0}, r"&protocol piston_speed = 0"),
+    ({"protocol.piston": "free"}, r"&protocol piston = 'free'"),
+    ({"cell.width": -3.0}, r"&cell width = -3"),
+    ({"material.gap": 1e-3}, r"&material gap = 0.001: .*tilt"),
+    ({"material.density": 0.0}, r"&material density = 0"),
+    ({"particles.n": 5000}, r"&particles n = 5000: particles cannot fit"),
+    ({"particles.jitter": 0.9}, r"&particles jitter = 0.9"),
+    ({"particles.n_species": 9}, r"&particles n_species = 9"),
+    ({"particles.mix_ratio": 0.5}, r"&particles mix_ratio = 0.5: must be 0 when n_species = 1"),
+    ({"output.piston_every": -1}, r"&output piston_every = -1"),
+    ({"physics.wall_law": "slab", "output.energy_every": 10}, r"&output energy_every"),
+    ({"particles.unknown_key": 3}, r"&particles: cannot read group"),
+    ({"nonsense.key": 1}, r"unknown namelist group &nonsense"),
+]
+
+
+@pytest.mark.parametrize("overrides,pattern", BAD, ids=[str(o) for o, _ in BAD])
+def test_bad_value_is_refused_with_key_and_range(overrides, pattern):
+    scene = Scene.read(RUNS / "demo.nml").with_overrides(overrides)
+    with pytest.raises(SceneError, match=pattern):
+        validate(scene)
+
+
+def test_type_error_in_namelist_text(tmp_path):
+    path = tmp_path / "typo.nml"
+    path.write_text((RUNS / "demo.nml").read_text().replace("n = 368", "n = 3x68"))
+    with pytest.raises(SceneError, match=r"&particles: cannot read group"):
+        validate(path)
+    proc = subprocess.run([str(engine_executable()), str(path), "--out", str(tmp_path / "o")],
+                          capture_output=True, text=True)
+    assert proc.returncode == 2 and str(path) in proc.stderr
+    assert not (tmp_path / "o").exists()
+
+
+def test_missing_file(tmp_path):
+    proc = subprocess.run([str(engine_executable()), str(tmp_path / "nope.nml")],
+                          capture_output=True, text=True)
+    assert proc.returncode == 4 and "cannot open scene file" in proc.stderr
+
+
+def test_every_shipped_scene_is_valid():
+    for path in sorted(RUNS.glob("*.nml")):
+        info = validate(path)
+        assert info["n_particles"] >= 1, path
+
+
+def test_override_parsing():
+    assert parse_override("particles.n=92") == ("particles", "n", 92)
+    assert parse_override("physics.gravity=.false.") == ("physics", "gravity", False)
+    with pytest.raises(SceneError, match="unknown group"):
+        parse_override("bogus.n=1")
+    with pytest.raises(SceneError, match="expected group.key=value"):
+        parse_override("n=1")
