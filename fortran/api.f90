@@ -7,10 +7,12 @@ module api
   use engine, only: sim_t, sim_load, sim_execute, sim_forces, sim_step, sim_energy
   use protocol, only: piston_at
   use pair_forces, only: dipole_kernel
+  use neighbours, only: nlist_due
   implicit none
   private
   public :: run_scene, load_scene, n_particles, get_state, set_state, compute_forces, &
-       advance_steps, piston_state, model_groups, energies, kernel, precision_probe
+       advance_steps, piston_state, model_groups, energies, kernel, precision_probe, &
+       set_threads, list_audit
 
 contains
 
@@ -50,10 +52,11 @@ contains
     integer, intent(out) :: species(n)
     integer, intent(out) :: step
     real(dp), intent(out) :: t
-    x = the_sim%s%x; y = the_sim%s%y
-    vx = the_sim%s%vx; vy = the_sim%s%vy
-    fx = the_sim%s%fx; fy = the_sim%s%fy
-    species = the_sim%s%species
+    ! arrays are kept re-sorted by cell inside the engine: return them by id
+    x(the_sim%s%id) = the_sim%s%x; y(the_sim%s%id) = the_sim%s%y
+    vx(the_sim%s%id) = the_sim%s%vx; vy(the_sim%s%id) = the_sim%s%vy
+    fx(the_sim%s%id) = the_sim%s%fx; fy(the_sim%s%id) = the_sim%s%fy
+    species(the_sim%s%id) = the_sim%s%species
     step = int(the_sim%s%step)
     t = the_sim%s%t
   end subroutine get_state
@@ -71,10 +74,12 @@ contains
       write(message, '(a,i0,a,i0)') 'set_state: got ', n, ' particles, the scene has ', the_sim%s%n
       return
     end if
-    the_sim%s%x = x; the_sim%s%y = y
-    the_sim%s%vx = vx; the_sim%s%vy = vy
-    the_sim%s%xp = x; the_sim%s%yp = y
+    the_sim%s%x = x(the_sim%s%id); the_sim%s%y = y(the_sim%s%id)
+    the_sim%s%vx = vx(the_sim%s%id); the_sim%s%vy = vy(the_sim%s%id)
+    the_sim%s%xp = the_sim%s%x; the_sim%s%yp = the_sim%s%y
     the_sim%s%has_previous = .false.
+    the_sim%s%tail_ready = .false.
+    the_sim%nl%valid = .false.
   end subroutine set_state
 
   !> Forces at the current state and time (fx, fy via get_state).
@@ -131,8 +136,45 @@ contains
   subroutine kernel(dx, dy, s5, s3)
     real(dp), intent(in) :: dx, dy
     real(dp), intent(out) :: s5, s3
-    call dipole_kernel(dx, dy, s5, s3)
+    call dipole_kernel(dx*dx + dy*dy, 0.0_dp, s5, s3)
   end subroutine kernel
+
+  !> Number of OpenMP threads for the force loops (no-op without OpenMP).
+  subroutine set_threads(n)
+    !$ use omp_lib, only: omp_set_num_threads
+    integer, intent(in) :: n
+    !$ call omp_set_num_threads(n)
+    if (n < 0) continue
+  end subroutine set_threads
+
+  !> Audit of the neighbour list against brute force at the current positions:
+  !> pairs closer than r_c missing from the list (must be 0), list builds so
+  !> far and pairs in the list. A strategy without list reports zeros.
+  subroutine list_audit(missing, builds, pairs)
+    integer, intent(out) :: missing, builds, pairs
+    integer :: i, j, k
+    logical :: found
+    real(dp) :: rc2
+    missing = 0
+    builds = int(the_sim%nl%builds)
+    pairs = int(the_sim%nl%pairs)
+    if (.not. the_sim%nl%valid) return
+    ! a due rebuild happens before the next force evaluation: nothing can be missed
+    if (nlist_due(the_sim%nl, the_sim%s%n, the_sim%s%x, the_sim%s%y)) return
+    rc2 = the_sim%m%r_cut**2
+    associate (s => the_sim%s, nl => the_sim%nl)
+      do i = 1, s%n - 1
+        do j = i + 1, s%n
+          if ((s%x(i) - s%x(j))**2 + (s%y(i) - s%y(j))**2 >= rc2) cycle
+          found = .false.
+          do k = nl%start(i), nl%start(i + 1) - 1
+            if (nl%nbr(k) == j) found = .true.
+          end do
+          if (.not. found) missing = missing + 1
+        end do
+      end do
+    end associate
+  end subroutine list_audit
 
   !> 1 + 2^-40 survives only in double precision (a check of the f2py kind map).
   subroutine precision_probe(x, y)

@@ -10,7 +10,10 @@ module engine
   use state, only: state_t
   use protocol, only: protocol_t, protocol_build, piston_at, phase_names
   use initial, only: place_particles
-  use pair_forces, only: pair_forces_all, pair_energy_all
+  use pair_forces, only: pair_forces_all, pair_forces_list, pair_forces_far, pair_energy_all
+  use state, only: state_permute
+  use neighbours, only: nlist_t, nlist_setup, nlist_due, nlist_bin, nlist_build, &
+       nb_all_pairs, nb_cells
   use walls, only: wall_forces, wall_energy
   use friction, only: gravity_force, viscous_friction, dry_friction
   use integrators, only: estimate_velocity, finish_velocity, advance
@@ -29,6 +32,7 @@ module engine
     type(state_t) :: s
     type(protocol_t) :: p
     type(output_t) :: o
+    type(nlist_t) :: nl
     character(len=:), allocatable :: scene_path
     logical :: writing = .false.        !< a run directory is open
     logical :: progress = .false.       !< print progress lines on stdout
@@ -80,6 +84,8 @@ contains
       return
     end if
     sim%need_velocity = sim%m%dry_order > 0 .or. sim%m%viscous_on
+    if (sim%m%neighbour /= nb_all_pairs) call nlist_setup(sim%nl, sim%m%neighbour, &
+         sim%m%r_cut, sim%m%skin, sim%m%width, sim%m%height, sim%s%n)
     sim%s%step = 0
     call piston_at(sim%p, 0.0_dp, h, phase)
     sim%s%piston_h = h
@@ -106,7 +112,7 @@ contains
     sim%writing = .true.
     call system_clock(sim%clock0)
     call write_run_json(dir, sim%scene_path, 'running', 0, '', sim%s%step, sim%p%n_steps, &
-         sim%s%t, 0.0_dp, sim%m, sim%s%n, st)
+         sim%s%t, 0.0_dp, sim%m, sim%s%n, 0_i8, pairs_per_step(sim), st)
   end subroutine sim_open_output
 
   !> Forces at the current positions (and velocity estimate). need_fmag also
@@ -121,8 +127,7 @@ contains
       s%fx = 0
       s%fy = 0
       if (m%dry_order > 0) s%s3 = 0
-      if (m%pair_law == law_dipole) call pair_forces_all(s%n, s%x, s%y, s%mu, s%wsin, &
-           m%k_pair, m%dry_order > 0, s%fx, s%fy, s%s3)
+      if (m%pair_law == law_dipole) call pair_pass(sim)
       call wall_forces(s%n, s%x, s%y, s%mu, m%wall_law, m%k_wall, m%width, m%height, &
            s%piston_h, m%piston_mode /= piston_none, s%fx, s%fy, s%piston_force, bad)
       if (bad /= 0) then
@@ -140,6 +145,50 @@ contains
       if (m%viscous_on) call viscous_friction(s%n, s%mass, m%gamma, s%vx, s%vy, s%fx, s%fy)
     end associate
   end subroutine sim_forces
+
+  !> Pair forces through the scene's neighbour strategy (+ frozen far field).
+  subroutine pair_pass(sim)
+    type(sim_t), intent(inout) :: sim
+    logical :: r3
+    associate (s => sim%s, m => sim%m, nl => sim%nl)
+      r3 = m%dry_order > 0
+      if (m%neighbour == nb_all_pairs) then
+        call pair_forces_all(s%n, s%x, s%y, s%mu, s%wsin, m%k_pair, r3, s%fx, s%fy, s%s3)
+        return
+      end if
+      if (nlist_due(nl, s%n, s%x, s%y)) then
+        call nlist_bin(nl, s%n, s%x, s%y)
+        if (nl%strategy /= nb_cells) then
+          ! re-sort the particles by cell for memory locality, then bin again
+          call state_permute(s, nl%cell_part)
+          call nlist_bin(nl, s%n, s%x, s%y)
+        end if
+        call nlist_build(nl, s%n, s%x, s%y)
+      end if
+      call pair_forces_list(s%n, s%x, s%y, s%mu, s%wsin, m%k_pair, m%r_cut**2, m%shift4, &
+           nl%check, r3, nl%start, nl%nbr, s%fx, s%fy, s%s3)
+      if (m%tail_frozen) then
+        if (mod(s%step, int(m%tail_every, i8)) == 0 .or. .not. s%tail_ready) then
+          call pair_forces_far(s%n, s%x, s%y, s%mu, s%wsin, m%k_pair, m%r_cut**2, r3, &
+               s%fx_far, s%fy_far, s%s3_far)
+          s%tail_ready = .true.
+        end if
+        s%fx = s%fx + s%fx_far
+        s%fy = s%fy + s%fy_far
+        if (r3) s%s3 = s%s3 + s%s3_far
+      end if
+    end associate
+  end subroutine pair_pass
+
+  !> Pairs the kernel evaluates per step (current list, or all pairs).
+  integer(i8) function pairs_per_step(sim)
+    type(sim_t), intent(in) :: sim
+    if (sim%m%neighbour == nb_all_pairs .or. .not. sim%nl%valid) then
+      pairs_per_step = int(sim%s%n, i8)*int(sim%s%n - 1, i8)/2
+    else
+      pairs_per_step = sim%nl%pairs
+    end if
+  end function pairs_per_step
 
   !> Energies [m1 g D1]: kinetic, pair, wall, gravity.
   subroutine sim_energy(sim, ek, ep, ew, eg)
@@ -239,7 +288,8 @@ contains
       status = 'failed: '//trim(st%msg)
     end if
     call write_run_json(sim%o%dir, sim%scene_path, status, st%code, trim(st%msg), &
-         sim%s%step, sim%p%n_steps, sim%s%t, wall, sim%m, sim%s%n, st2)
+         sim%s%step, sim%p%n_steps, sim%s%t, wall, sim%m, sim%s%n, sim%nl%builds, &
+         pairs_per_step(sim), st2)
     if (st%code == exit_ok .and. st2%code /= exit_ok) st = st2
     sim%writing = .false.
   end subroutine sim_finish

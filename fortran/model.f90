@@ -47,6 +47,12 @@ module model
     logical :: gravity_on = .true.
     logical :: viscous_on = .false.
     real(dp) :: mu_s = 0, mu_d = 0, v_t = 0, gamma = 0
+    ! neighbours and truncation
+    integer :: neighbour = 0             !< nb_* of module neighbours
+    real(dp) :: r_cut = 0, skin = 0
+    real(dp) :: shift4 = 0               !< r_c^-4 for the shifted force, else 0
+    logical :: tail_frozen = .false.
+    integer :: tail_every = 100
     ! geometry and step
     real(dp) :: width = 0, height = 0, dt = 0
     ! species tables (index k = 1..n_species)
@@ -107,6 +113,18 @@ contains
     m%mu_s = sc%mu_static
     m%mu_d = sc%mu_dynamic
     m%v_t = sc%v_threshold
+    select case (trim(sc%neighbour))
+    case ('cells');  m%neighbour = 1
+    case ('verlet'); m%neighbour = 2
+    case ('thesis'); m%neighbour = 3
+    case default;    m%neighbour = 0
+    end select
+    m%r_cut = sc%r_cut
+    m%skin = sc%skin
+    m%shift4 = 0
+    if (m%neighbour /= 0 .and. trim(sc%truncation) == 'shifted_force') m%shift4 = sc%r_cut**(-4)
+    m%tail_frozen = m%neighbour /= 0 .and. trim(sc%tail) == 'frozen'
+    m%tail_every = sc%tail_every
     m%width = sc%width
     m%height = sc%height
     m%dt = sc%dt

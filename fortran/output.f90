@@ -113,9 +113,12 @@ contains
   subroutine write_frame(o, s)
     type(output_t), intent(in) :: o
     type(state_t), intent(in) :: s
-    integer :: i
-    do i = 1, s%n
-      write(o%u_frame, '(i0,1x,'//rfmt//',1x,i0,1x,i0,7(1x,'//rfmt//'))') s%step, s%t, i, &
+    integer :: i, k
+    integer :: at(s%n)
+    at(s%id) = [(k, k = 1, s%n)]     ! rows in particle-id order
+    do k = 1, s%n
+      i = at(k)
+      write(o%u_frame, '(i0,1x,'//rfmt//',1x,i0,1x,i0,7(1x,'//rfmt//'))') s%step, s%t, s%id(i), &
            s%species(i), s%x(i), s%y(i), s%vx(i), s%vy(i), s%fx(i), s%fy(i), s%fmag(i)
     end do
   end subroutine write_frame
@@ -136,10 +139,12 @@ contains
 
   !> run.json, replaced atomically.
   subroutine write_run_json(dir, scene_path, status, code, message, steps_done, steps_total, &
-       t_now, wall, m, n, st)
+       t_now, wall, m, n, builds, pairs, st)
     character(len=*), intent(in) :: dir, scene_path, status, message
     integer, intent(in) :: code, n
     integer(i8), intent(in) :: steps_done, steps_total
+    integer(i8), intent(in) :: builds   !< neighbour-list builds
+    integer(i8), intent(in) :: pairs    !< pairs evaluated per step (list length or N(N-1)/2)
     real(dp), intent(in) :: t_now, wall
     type(model_t), intent(in) :: m
     type(status_t), intent(inout) :: st
@@ -169,6 +174,9 @@ contains
     write(u, '(a,'//rfmt//',a)') '  "t_reached": ', t_now, ','
     write(u, '(a,'//rfmt//',a)') '  "wall_time_s": ', wall, ','
     write(u, '(a,'//rfmt//',a)') '  "wall_time_per_step_s": ', per_step, ','
+    write(u, '(a,i0,a)') '  "list_builds": ', builds, ','
+    write(u, '(a,i0,a)') '  "pairs_per_step": ', pairs, ','
+    write(u, '(a,i0,a)') '  "threads": ', n_threads(), ','
     write(u, '(a)') '  "units": {'
     write(u, '(a,'//rfmt//',a)') '    "length_m": ', m%length_unit, ','
     write(u, '(a,'//rfmt//',a)') '    "time_s": ', m%time_unit, ','
@@ -204,6 +212,12 @@ contains
       end do
     end function esc
   end subroutine write_run_json
+
+  integer function n_threads()
+    !$ use omp_lib, only: omp_get_max_threads
+    n_threads = 1
+    !$ n_threads = omp_get_max_threads()
+  end function n_threads
 
   function compiler_id() result(s)
     use, intrinsic :: iso_fortran_env, only: compiler_version

@@ -2,26 +2,31 @@
 !> (thesis eq. 2.7 / 4.3): F_ij = k_pair mu_i mu_j r_ij^-4 r_hat (k_pair = 3F/4).
 !> One kernel; every neighbour strategy calls it. The same pass accumulates
 !> the r^-3 sums that the dry-friction normal force needs (eq. 4.11).
+!>
+!> Truncated strategies may shift the force (shift4 = r_c^-4) so that it
+!> vanishes continuously at r_c: f(r) = k (r^-4 - r_c^-4).
 module pair_forces
   use kinds, only: dp
   implicit none
   private
 
-  public :: dipole_kernel, pair_forces_all, pair_energy_all
+  public :: dipole_kernel, pair_forces_all, pair_forces_list, pair_forces_far, pair_energy_all
+
+  integer, parameter :: mode_all = 1, mode_list = 2
 
 contains
 
-  !> Kernel for one pair separated by (dx, dy) = r_i - r_j [D1]:
-  !> s5 = r^-5 (so the force on i is k mu_i mu_j s5 (dx, dy)) and s3 = r^-3.
+  !> Kernel for one pair at squared distance r2 [D1^2]: the force on i is
+  !> k mu_i mu_j s5 (r_i - r_j), with s5 = r^-5 - shift4 r^-1, and s3 = r^-3.
   !> No non-integer powers: one sqrt, one division.
-  pure subroutine dipole_kernel(dx, dy, s5, s3)
-    real(dp), intent(in) :: dx, dy
+  pure elemental subroutine dipole_kernel(r2, shift4, s5, s3)
+    real(dp), intent(in) :: r2, shift4
     real(dp), intent(out) :: s5, s3
     real(dp) :: r2inv, rinv
-    r2inv = 1.0_dp/(dx*dx + dy*dy)
+    r2inv = 1.0_dp/r2
     rinv = sqrt(r2inv)
     s3 = r2inv*rinv
-    s5 = s3*r2inv
+    s5 = s3*r2inv - shift4*rinv
   end subroutine dipole_kernel
 
   !> O(N^2) reference: every pair once, Newton's third law applied exactly.
@@ -35,10 +40,50 @@ contains
     logical, intent(in) :: with_r3           !< accumulate friction sums
     real(dp), intent(inout) :: fx(n), fy(n)  !< forces [m1 g]
     real(dp), intent(inout) :: s3(n)         !< sum_j wsin_j r_ij^-3
-    integer :: i, j
-    real(dp) :: xi, yi, ci, dx, dy, s5, r3, c, fxi, fyi, s3i, wi
+    integer :: dummy(1)
+    call threaded_pass(mode_all, n, x, y, mu, wsin, k_pair, 0.0_dp, 0.0_dp, 0.0_dp, .false., &
+         with_r3, dummy, dummy, fx, fy, s3)
+  end subroutine pair_forces_all
 
-    do i = 1, n - 1
+  !> Half neighbour list (pairs i < j stored once, CSR: the neighbours of i
+  !> are nbr(start(i) : start(i+1)-1)). Pairs at r >= r_c are skipped when
+  !> check is set (the thesis variant r_c = r_v uses every listed pair).
+  subroutine pair_forces_list(n, x, y, mu, wsin, k_pair, rc2, shift4, check, with_r3, &
+       start, nbr, fx, fy, s3)
+    integer, intent(in) :: n
+    real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair
+    real(dp), intent(in) :: rc2       !< squared cut-off [D1^2]
+    real(dp), intent(in) :: shift4    !< force shift r_c^-4 (0: plain truncation)
+    logical, intent(in) :: check, with_r3
+    integer, intent(in) :: start(n + 1), nbr(:)
+    real(dp), intent(inout) :: fx(n), fy(n), s3(n)
+    call threaded_pass(mode_list, n, x, y, mu, wsin, k_pair, 0.0_dp, rc2, shift4, check, &
+         with_r3, start, nbr, fx, fy, s3)
+  end subroutine pair_forces_list
+
+  !> The far field: every pair at r >= r_c, O(N^2), for the frozen tail
+  !> correction (recomputed every tail_every steps). Overwrites fx, fy, s3.
+  subroutine pair_forces_far(n, x, y, mu, wsin, k_pair, rc2, with_r3, fx, fy, s3)
+    integer, intent(in) :: n
+    real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair, rc2
+    logical, intent(in) :: with_r3
+    real(dp), intent(out) :: fx(n), fy(n), s3(n)
+    integer :: dummy(1)
+    fx = 0; fy = 0; s3 = 0
+    call threaded_pass(mode_all, n, x, y, mu, wsin, k_pair, rc2, 0.0_dp, 0.0_dp, .false., &
+         with_r3, dummy, dummy, fx, fy, s3)
+  end subroutine pair_forces_far
+
+  !> Rows i_lo..i_hi of the all-pairs triangle; pairs with r^2 < r2_min are
+  !> masked out (0 for the full sum, r_c^2 for the far field).
+  subroutine rows_all(i_lo, i_hi, n, x, y, mu, wsin, k_pair, r2_min, with_r3, fx, fy, s3)
+    integer, intent(in) :: i_lo, i_hi, n
+    real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair, r2_min
+    logical, intent(in) :: with_r3
+    real(dp), intent(inout) :: fx(n), fy(n), s3(n)
+    integer :: i, j
+    real(dp) :: xi, yi, ci, dx, dy, r2, s5, r3, c, fxi, fyi, s3i, wi, keep
+    do i = i_lo, i_hi
       xi = x(i); yi = y(i)
       ci = k_pair*mu(i)
       wi = wsin(i)
@@ -46,13 +91,16 @@ contains
       do j = i + 1, n
         dx = xi - x(j)
         dy = yi - y(j)
-        call dipole_kernel(dx, dy, s5, r3)
-        c = ci*mu(j)*s5
+        r2 = dx*dx + dy*dy
+        keep = merge(1.0_dp, 0.0_dp, r2 >= r2_min)
+        call dipole_kernel(r2, 0.0_dp, s5, r3)
+        c = keep*ci*mu(j)*s5
         fxi = fxi + c*dx
         fyi = fyi + c*dy
         fx(j) = fx(j) - c*dx
         fy(j) = fy(j) - c*dy
         if (with_r3) then
+          r3 = keep*r3
           s3i = s3i + wsin(j)*r3
           s3(j) = s3(j) + wi*r3
         end if
@@ -61,9 +109,144 @@ contains
       fy(i) = fy(i) + fyi
       if (with_r3) s3(i) = s3(i) + s3i
     end do
-  end subroutine pair_forces_all
+  end subroutine rows_all
 
-  !> Pair potential energy sum_{i<j} (k_pair/3) mu_i mu_j r^-3 [m1 g D1].
+  !> Rows i_lo..i_hi of a half neighbour list. Two passes per chunk: gather
+  !> and evaluate (vectorisable), then accumulate on i and scatter on j.
+  subroutine rows_list(i_lo, i_hi, n, x, y, mu, wsin, k_pair, rc2, shift4, check, with_r3, &
+       start, nbr, fx, fy, s3)
+    integer, intent(in) :: i_lo, i_hi, n
+    real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair, rc2, shift4
+    logical, intent(in) :: check, with_r3
+    integer, intent(in) :: start(n + 1), nbr(:)
+    real(dp), intent(inout) :: fx(n), fy(n), s3(n)
+    integer, parameter :: chunk = 256
+    integer :: i, j, m, k0, nk
+    real(dp) :: xi, yi, ci, wi, fxi, fyi, s3i, r2, keep
+    real(dp) :: dxs(chunk), dys(chunk), cs(chunk), r3s(chunk)
+    do i = i_lo, i_hi
+      xi = x(i); yi = y(i)
+      ci = k_pair*mu(i)
+      wi = wsin(i)
+      fxi = 0; fyi = 0; s3i = 0
+      do k0 = start(i), start(i + 1) - 1, chunk
+        nk = min(chunk, start(i + 1) - k0)
+        do m = 1, nk
+          j = nbr(k0 + m - 1)
+          dxs(m) = xi - x(j)
+          dys(m) = yi - y(j)
+          r2 = dxs(m)*dxs(m) + dys(m)*dys(m)
+          keep = 1
+          if (check) keep = merge(1.0_dp, 0.0_dp, r2 < rc2)
+          call dipole_kernel(r2, shift4, cs(m), r3s(m))
+          cs(m) = keep*ci*mu(j)*cs(m)
+          r3s(m) = keep*r3s(m)
+        end do
+        do m = 1, nk
+          j = nbr(k0 + m - 1)
+          fxi = fxi + cs(m)*dxs(m)
+          fyi = fyi + cs(m)*dys(m)
+          fx(j) = fx(j) - cs(m)*dxs(m)
+          fy(j) = fy(j) - cs(m)*dys(m)
+        end do
+        if (with_r3) then
+          do m = 1, nk
+            j = nbr(k0 + m - 1)
+            s3i = s3i + wsin(j)*r3s(m)
+            s3(j) = s3(j) + wi*r3s(m)
+          end do
+        end if
+      end do
+      fx(i) = fx(i) + fxi
+      fy(i) = fy(i) + fyi
+      if (with_r3) s3(i) = s3(i) + s3i
+    end do
+  end subroutine rows_list
+
+  !> Run the rows on the OpenMP threads, deterministically: thread t takes a
+  !> fixed block of rows holding ~1/nt of the pairs and accumulates into its
+  !> own buffer; buffers are then added in thread order. The result does not
+  !> depend on scheduling, and on the thread count only through round-off.
+  subroutine threaded_pass(mode, n, x, y, mu, wsin, k_pair, r2_min, rc2, shift4, check, &
+       with_r3, start, nbr, fx, fy, s3)
+    !$ use omp_lib, only: omp_get_max_threads, omp_get_thread_num
+    integer, intent(in) :: mode, n
+    real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair, r2_min, rc2, shift4
+    logical, intent(in) :: check, with_r3
+    integer, intent(in) :: start(:), nbr(:)
+    real(dp), intent(inout) :: fx(n), fy(n), s3(n)
+    real(dp), allocatable :: buf(:, :, :)
+    integer :: nt, t, lo, hi, i
+    nt = 1
+    !$ nt = min(omp_get_max_threads(), max(1, n/64))
+    if (nt == 1) then
+      call rows(1, n, fx, fy, s3)
+      return
+    end if
+    allocate(buf(n, 3, nt))
+    !$omp parallel num_threads(nt) default(shared) private(t, lo, hi)
+    t = 1
+    !$ t = omp_get_thread_num() + 1
+    buf(:, :, t) = 0
+    call block_of(t, lo, hi)
+    call rows(lo, hi, buf(:, 1, t), buf(:, 2, t), buf(:, 3, t))
+    !$omp barrier
+    !$omp do schedule(static)
+    do i = 1, n
+      fx(i) = fx(i) + sum(buf(i, 1, :))
+      fy(i) = fy(i) + sum(buf(i, 2, :))
+      if (with_r3) s3(i) = s3(i) + sum(buf(i, 3, :))
+    end do
+    !$omp end do
+    !$omp end parallel
+  contains
+    subroutine rows(i_lo, i_hi, ax, ay, a3)
+      integer, intent(in) :: i_lo, i_hi
+      real(dp), intent(inout) :: ax(n), ay(n), a3(n)
+      if (mode == mode_all) then
+        call rows_all(i_lo, i_hi, n, x, y, mu, wsin, k_pair, r2_min, with_r3, ax, ay, a3)
+      else
+        call rows_list(i_lo, i_hi, n, x, y, mu, wsin, k_pair, rc2, shift4, check, with_r3, &
+             start, nbr, ax, ay, a3)
+      end if
+    end subroutine rows
+    !> Rows of thread t: equal shares of the pairs (triangle or list).
+    subroutine block_of(t, lo, hi)
+      integer, intent(in) :: t
+      integer, intent(out) :: lo, hi
+      lo = first_row(t - 1) + 1
+      hi = first_row(t)
+    end subroutine block_of
+    !> Last row of the first k shares (0 for k = 0, n for k = nt).
+    integer function first_row(k) result(r)
+      integer, intent(in) :: k
+      real(dp) :: target, total
+      if (k <= 0) then
+        r = 0
+        return
+      end if
+      if (k >= nt) then
+        r = n
+        return
+      end if
+      if (mode == mode_all) then
+        ! pairs in rows 1..r: r n - r (r+1)/2; solve for the share k/nt
+        total = 0.5_dp*real(n, dp)*real(n - 1, dp)
+        target = total*real(k, dp)/real(nt, dp)
+        r = int((real(n, dp) - 0.5_dp) - sqrt((real(n, dp) - 0.5_dp)**2 - 2*target))
+      else
+        total = real(start(n + 1) - 1, dp)
+        target = total*real(k, dp)/real(nt, dp)
+        r = 0
+        do while (r < n .and. real(start(r + 1) - 1, dp) < target)
+          r = r + 1
+        end do
+      end if
+      r = max(0, min(n, r))
+    end function first_row
+  end subroutine threaded_pass
+
+  !> Pair potential energy sum_{i<j} (k_pair/3) mu_i mu_j r^-3 [m1 g D1] (untruncated).
   function pair_energy_all(n, x, y, mu, k_pair) result(e)
     integer, intent(in) :: n
     real(dp), intent(in) :: x(n), y(n), mu(n), k_pair
@@ -72,7 +255,7 @@ contains
     e = 0
     do i = 1, n - 1
       do j = i + 1, n
-        call dipole_kernel(x(i) - x(j), y(i) - y(j), s5, r3)
+        call dipole_kernel((x(i) - x(j))**2 + (y(i) - y(j))**2, 0.0_dp, s5, r3)
         e = e + mu(i)*mu(j)*r3
       end do
     end do

@@ -53,8 +53,14 @@ module scene
     real(dp) :: viscous_gamma = 0.0_dp   !< dimensionless gamma T/m1; 0 = off
     ! &integration
     character(len=name_len) :: integrator = 'stormer_verlet'  !< | 'velocity_verlet' | 'euler'
-    character(len=name_len) :: neighbour = 'all_pairs'
+    character(len=name_len) :: neighbour = 'all_pairs'  !< | 'cells' | 'verlet' | 'thesis'
     real(dp) :: dt = 2.0e-3_dp           !< time step [T]
+    real(dp) :: r_cut = 7.13_dp          !< pair cut-off r_c [D1] (truncated strategies)
+    real(dp) :: skin = 1.0_dp            !< Verlet skin r_v - r_c [D1]
+    character(len=name_len) :: truncation = 'plain'  !< | 'shifted_force'
+    character(len=name_len) :: tail = 'none'         !< | 'frozen' (far field every tail_every steps)
+    integer :: tail_every = 100
+    real(dp) :: target_rel_error = 0.0_dp  !< read by pyorch (bench table), ignored by the engine
     ! &protocol
     character(len=name_len) :: piston = 'prescribed'  !< 'prescribed' | 'fixed' | 'none'
     real(dp) :: h_start = -1.0_dp        !< piston height at t = 0 [D1] (<0: cell height)
@@ -95,8 +101,9 @@ contains
     character(len=name_len) :: pair_law, wall_law, dry_friction
     logical :: gravity
     real(dp) :: mu_static, mu_dynamic, v_threshold, viscous_gamma
-    character(len=name_len) :: integrator, neighbour
-    real(dp) :: dt
+    character(len=name_len) :: integrator, neighbour, truncation, tail
+    real(dp) :: dt, r_cut, skin, target_rel_error
+    integer :: tail_every
     character(len=name_len) :: piston
     real(dp) :: h_start, t_relax, relax_rate, h0, hf, phi_final, piston_speed
     real(dp) :: t_hold, t_final, t_end
@@ -110,7 +117,8 @@ contains
          species_diameter, mix_ratio, placement
     namelist /physics/ pair_law, wall_law, gravity, dry_friction, mu_static, &
          mu_dynamic, v_threshold, viscous_gamma
-    namelist /integration/ integrator, neighbour, dt
+    namelist /integration/ integrator, neighbour, dt, r_cut, skin, truncation, tail, &
+         tail_every, target_rel_error
     namelist /protocol/ piston, h_start, t_relax, relax_rate, h0, hf, phi_final, &
          piston_speed, t_hold, expand, t_final, t_end
     namelist /output/ piston_every, frame_every, distance_every, energy_every, &
@@ -132,6 +140,8 @@ contains
     mu_dynamic = sc%mu_dynamic; v_threshold = sc%v_threshold
     viscous_gamma = sc%viscous_gamma
     integrator = sc%integrator; neighbour = sc%neighbour; dt = sc%dt
+    r_cut = sc%r_cut; skin = sc%skin; truncation = sc%truncation; tail = sc%tail
+    tail_every = sc%tail_every; target_rel_error = sc%target_rel_error
     piston = sc%piston; h_start = sc%h_start; t_relax = sc%t_relax
     relax_rate = sc%relax_rate; h0 = sc%h0; hf = sc%hf; phi_final = sc%phi_final
     piston_speed = sc%piston_speed; t_hold = sc%t_hold; expand = sc%expand
@@ -182,6 +192,8 @@ contains
     sc%mu_dynamic = mu_dynamic; sc%v_threshold = v_threshold
     sc%viscous_gamma = viscous_gamma
     sc%integrator = integrator; sc%neighbour = neighbour; sc%dt = dt
+    sc%r_cut = r_cut; sc%skin = skin; sc%truncation = truncation; sc%tail = tail
+    sc%tail_every = tail_every; sc%target_rel_error = target_rel_error
     sc%piston = piston; sc%h_start = h_start; sc%t_relax = t_relax
     sc%relax_rate = relax_rate; sc%h0 = h0; sc%hf = hf; sc%phi_final = phi_final
     sc%piston_speed = piston_speed; sc%t_hold = t_hold; sc%expand = expand
@@ -296,8 +308,19 @@ contains
 
     call choice('integration', 'integrator', sc%integrator, &
          [character(len=name_len) :: 'stormer_verlet', 'velocity_verlet', 'euler'])
-    call choice('integration', 'neighbour', sc%neighbour, [character(len=name_len) :: 'all_pairs'])
+    call choice('integration', 'neighbour', sc%neighbour, &
+         [character(len=name_len) :: 'all_pairs', 'cells', 'verlet', 'thesis'])
     call rpos('integration', 'dt', sc%dt, 1.0e-12_dp, 1.0_dp)
+    call choice('integration', 'truncation', sc%truncation, &
+         [character(len=name_len) :: 'plain', 'shifted_force'])
+    call choice('integration', 'tail', sc%tail, [character(len=name_len) :: 'none', 'frozen'])
+    call rpos('integration', 'target_rel_error', sc%target_rel_error, 0.0_dp, 1.0_dp, .true.)
+    if (trim(sc%neighbour) /= 'all_pairs') then
+      call rpos('integration', 'r_cut', sc%r_cut, 1.0_dp, 1.0e4_dp)
+      call ipos('integration', 'tail_every', sc%tail_every, 1, huge(1))
+      if (trim(sc%neighbour) /= 'cells') &
+           call rpos('integration', 'skin', sc%skin, 0.0_dp, 1.0e3_dp)
+    end if
 
     call choice('protocol', 'piston', sc%piston, &
          [character(len=name_len) :: 'prescribed', 'fixed', 'none'])
@@ -517,6 +540,12 @@ contains
     call ps('integrator', sc%integrator, '')
     call ps('neighbour', sc%neighbour, '')
     call pr('dt', sc%dt, 'T')
+    call pr('r_cut', sc%r_cut, 'D1')
+    call pr('skin', sc%skin, 'D1')
+    call ps('truncation', sc%truncation, '')
+    call ps('tail', sc%tail, '')
+    call pi_('tail_every', sc%tail_every, '')
+    call pr('target_rel_error', sc%target_rel_error, 'used by pyorch only')
     write(u, '(a)') '/'
     write(u, '(a)') '&protocol'
     call ps('piston', sc%piston, '')

@@ -4,7 +4,7 @@ module state
   implicit none
   private
 
-  public :: state_t, state_allocate
+  public :: state_t, state_allocate, state_permute
 
   type :: state_t
     integer :: n = 0                       !< number of particles
@@ -14,6 +14,8 @@ module state
     real(dp), allocatable :: fx(:), fy(:)  !< total force at the current step [m1 g] (n)
     real(dp), allocatable :: fmag(:)       !< |magnetic force| (pair + walls) [m1 g] (n), filled on demand
     real(dp), allocatable :: s3(:)         !< sum_j mu_j sin(theta_j) r_ij^-3 (n), dry friction only
+    real(dp), allocatable :: fx_far(:), fy_far(:), s3_far(:)  !< frozen far field (tail = 'frozen') (n)
+    integer, allocatable :: id(:)          !< particle id 1..n (arrays are re-sorted by cell) (n)
     integer, allocatable :: species(:)     !< species index (n)
     real(dp), allocatable :: mass(:)       !< m_i/m1 (n)
     real(dp), allocatable :: mu(:)         !< mu_i/mu1 (n)
@@ -25,6 +27,7 @@ module state
     real(dp) :: piston_force = 0           !< force of the particles on the piston [m1 g]
     integer :: phase = 0                   !< protocol phase of the current step
     logical :: has_previous = .false.      !< xp, yp valid
+    logical :: tail_ready = .false.        !< fx_far, fy_far, s3_far computed
   end type state_t
 
 contains
@@ -32,12 +35,28 @@ contains
   subroutine state_allocate(s, n)
     type(state_t), intent(inout) :: s
     integer, intent(in) :: n
+    integer :: i
     s%n = n
     allocate(s%x(n), s%y(n), s%vx(n), s%vy(n), s%xp(n), s%yp(n), s%fx(n), s%fy(n), &
-         s%fmag(n), s%s3(n), s%species(n), s%mass(n), s%mu(n), s%wsin(n), s%nfac(n))
+         s%fmag(n), s%s3(n), s%species(n), s%mass(n), s%mu(n), s%wsin(n), s%nfac(n), &
+         s%fx_far(n), s%fy_far(n), s%s3_far(n), s%id(n))
     s%x = 0; s%y = 0; s%vx = 0; s%vy = 0; s%xp = 0; s%yp = 0
     s%fx = 0; s%fy = 0; s%fmag = 0; s%s3 = 0
     s%species = 1; s%mass = 1; s%mu = 1; s%wsin = 0; s%nfac = 0
+    s%fx_far = 0; s%fy_far = 0; s%s3_far = 0
+    s%id = [(i, i = 1, n)]
   end subroutine state_allocate
+
+  !> Reorder every per-particle array: new index k holds old particle perm(k).
+  subroutine state_permute(s, perm)
+    type(state_t), intent(inout) :: s
+    integer, intent(in) :: perm(:)
+    s%x = s%x(perm); s%y = s%y(perm); s%vx = s%vx(perm); s%vy = s%vy(perm)
+    s%xp = s%xp(perm); s%yp = s%yp(perm); s%fx = s%fx(perm); s%fy = s%fy(perm)
+    s%fmag = s%fmag(perm); s%s3 = s%s3(perm)
+    s%fx_far = s%fx_far(perm); s%fy_far = s%fy_far(perm); s%s3_far = s%s3_far(perm)
+    s%id = s%id(perm); s%species = s%species(perm); s%mass = s%mass(perm)
+    s%mu = s%mu(perm); s%wsin = s%wsin(perm); s%nfac = s%nfac(perm)
+  end subroutine state_permute
 
 end module state

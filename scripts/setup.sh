@@ -51,11 +51,14 @@ if [ "$(cat "$DEPS_STAMP" 2>/dev/null)" != "$deps_hash" ]; then
 fi
 
 BUILD_STAMP="$VENV/.pyorch-build"
-src_hash=$(cd "$ROOT" && find fortran pyorch meson.build meson.options pyproject.toml -type f \
-  ! -name '*.pyc' -print0 | sort -z | xargs -0 sha256sum | sha256sum | cut -c1-16)
+src_hash=$( (cd "$ROOT" && find fortran pyorch meson.build meson.options pyproject.toml -type f \
+  ! -name '*.pyc' -print0 | sort -z | xargs -0 sha256sum; echo "native=${PYORCH_NATIVE:-1}") \
+  | sha256sum | cut -c1-16)
 if [ "$(cat "$BUILD_STAMP" 2>/dev/null)" != "$src_hash" ] || [ ! -x "$VENV/bin/magbed" ]; then
   say "building and installing pyorch + magbed (meson-python)"
-  (cd "$ROOT" && "${PIP[@]}" install --no-build-isolation --no-deps \
-     ${PYORCH_NATIVE:+-Csetup-args=-Dnative=true} . )
+  # tuned for this machine (-march=native) unless PYORCH_NATIVE=0
+  native=()
+  [ "${PYORCH_NATIVE:-1}" = "1" ] && native=(-Csetup-args=-Dnative=true)
+  (cd "$ROOT" && "${PIP[@]}" install --no-build-isolation --no-deps "${native[@]}" . )
   echo "$src_hash" > "$BUILD_STAMP"
 fi

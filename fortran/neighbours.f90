@@ -1,0 +1,162 @@
+!> Neighbour strategies feeding the one pair kernel:
+!>   all_pairs  O(N^2) reference, no cut-off;
+!>   cells      pairs within r_c found from a cell grid at every step (no skin);
+!>   verlet     half Verlet list of radius r_c + skin built from cells, rebuilt
+!>              when the largest displacement since the last build exceeds skin/2
+!>              (never at a fixed interval), particles re-sorted by cell at rebuilds;
+!>   thesis     the thesis' variant (ch. 5.1): every listed pair within r_v = r_c + skin
+!>              is used (no cut-off test), same rebuild rule.
+!> Walls are never truncated.
+module neighbours
+  use kinds, only: dp, i8
+  implicit none
+  private
+
+  public :: nlist_t, nlist_setup, nlist_due, nlist_bin, nlist_build
+  public :: nb_all_pairs, nb_cells, nb_verlet, nb_thesis
+
+  integer, parameter :: nb_all_pairs = 0, nb_cells = 1, nb_verlet = 2, nb_thesis = 3
+
+  type :: nlist_t
+    integer :: strategy = nb_all_pairs
+    real(dp) :: rc = 0          !< cut-off radius [D1]
+    real(dp) :: skin = 0        !< list skin [D1]
+    real(dp) :: rlist = 0       !< list radius r_c + skin [D1]
+    logical :: check = .true.   !< skip listed pairs beyond r_c
+    integer :: ncx = 1, ncy = 1 !< cell grid
+    real(dp) :: csx = 1, csy = 1  !< cell sizes (>= rlist) [D1]
+    integer, allocatable :: cell_start(:)  !< (ncx*ncy + 1) CSR offsets into cell_part
+    integer, allocatable :: cell_part(:)   !< (n) particles ordered by cell
+    integer, allocatable :: start(:)       !< (n + 1) CSR offsets into nbr
+    integer, allocatable :: nbr(:)         !< neighbours j > i of each i
+    real(dp), allocatable :: xref(:), yref(:)  !< positions at the last build (n)
+    logical :: valid = .false.             !< a list exists for the current ordering
+    integer(i8) :: builds = 0              !< number of list builds
+    integer(i8) :: pairs = 0               !< pairs in the current list
+  end type nlist_t
+
+contains
+
+  subroutine nlist_setup(nl, strategy, rc, skin, width, height, n)
+    type(nlist_t), intent(inout) :: nl
+    integer, intent(in) :: strategy, n
+    real(dp), intent(in) :: rc, skin, width, height
+    nl%strategy = strategy
+    nl%rc = rc
+    nl%skin = skin
+    if (strategy == nb_cells) nl%skin = 0
+    nl%rlist = rc + nl%skin
+    nl%check = strategy /= nb_thesis
+    nl%ncx = max(1, min(4096, int(width/nl%rlist)))
+    nl%ncy = max(1, min(4096, int(height/nl%rlist)))
+    nl%csx = width/nl%ncx
+    nl%csy = height/nl%ncy
+    if (allocated(nl%cell_start)) deallocate(nl%cell_start, nl%cell_part, nl%start, nl%xref, nl%yref)
+    allocate(nl%cell_start(nl%ncx*nl%ncy + 1), nl%cell_part(n), nl%start(n + 1), &
+         nl%xref(n), nl%yref(n))
+    if (allocated(nl%nbr)) deallocate(nl%nbr)
+    allocate(nl%nbr(max(16, 8*n)))
+    nl%valid = .false.
+    nl%builds = 0
+  end subroutine nlist_setup
+
+  !> Whether the list must be rebuilt before computing forces at x, y.
+  logical function nlist_due(nl, n, x, y) result(due)
+    type(nlist_t), intent(in) :: nl
+    integer, intent(in) :: n
+    real(dp), intent(in) :: x(n), y(n)
+    real(dp) :: lim2, d2max
+    integer :: i
+    if (.not. nl%valid .or. nl%strategy == nb_cells) then
+      due = .true.
+      return
+    end if
+    lim2 = (0.5_dp*nl%skin)**2
+    d2max = 0
+    do i = 1, n
+      d2max = max(d2max, (x(i) - nl%xref(i))**2 + (y(i) - nl%yref(i))**2)
+    end do
+    due = d2max > lim2
+  end function nlist_due
+
+  pure integer function cell_index(nl, xi, yi) result(c)
+    type(nlist_t), intent(in) :: nl
+    real(dp), intent(in) :: xi, yi
+    integer :: ix, iy
+    ix = min(nl%ncx - 1, max(0, int(xi/nl%csx)))
+    iy = min(nl%ncy - 1, max(0, int(yi/nl%csy)))
+    c = 1 + ix + nl%ncx*iy
+  end function cell_index
+
+  !> Counting sort of the particles by cell: cell_part lists them cell by cell.
+  subroutine nlist_bin(nl, n, x, y)
+    type(nlist_t), intent(inout) :: nl
+    integer, intent(in) :: n
+    real(dp), intent(in) :: x(n), y(n)
+    integer :: i, c, nc
+    integer, allocatable :: fill(:)
+    nc = nl%ncx*nl%ncy
+    nl%cell_start = 0
+    do i = 1, n
+      c = cell_index(nl, x(i), y(i))
+      nl%cell_start(c + 1) = nl%cell_start(c + 1) + 1
+    end do
+    nl%cell_start(1) = 1
+    do c = 1, nc
+      nl%cell_start(c + 1) = nl%cell_start(c + 1) + nl%cell_start(c)
+    end do
+    allocate(fill(nc))
+    fill = nl%cell_start(1:nc)
+    do i = 1, n
+      c = cell_index(nl, x(i), y(i))
+      nl%cell_part(fill(c)) = i
+      fill(c) = fill(c) + 1
+    end do
+  end subroutine nlist_bin
+
+  !> Build the half list (pairs i < j within rlist) from the cell grid.
+  !> Assumes nlist_bin was called for the current positions.
+  subroutine nlist_build(nl, n, x, y)
+    type(nlist_t), intent(inout) :: nl
+    integer, intent(in) :: n
+    real(dp), intent(in) :: x(n), y(n)
+    integer :: i, j, k, c, ix, iy, jx, jy, cnt, pass
+    real(dp) :: rl2, dx, dy
+    rl2 = nl%rlist**2
+    do pass = 1, 2
+      cnt = 0
+      do i = 1, n
+        if (pass == 2) nl%start(i) = cnt + 1
+        c = cell_index(nl, x(i), y(i)) - 1
+        ix = mod(c, nl%ncx)
+        iy = c/nl%ncx
+        do jy = max(0, iy - 1), min(nl%ncy - 1, iy + 1)
+          do jx = max(0, ix - 1), min(nl%ncx - 1, ix + 1)
+            c = 1 + jx + nl%ncx*jy
+            do k = nl%cell_start(c), nl%cell_start(c + 1) - 1
+              j = nl%cell_part(k)
+              if (j <= i) cycle
+              dx = x(i) - x(j)
+              dy = y(i) - y(j)
+              if (dx*dx + dy*dy < rl2) then
+                cnt = cnt + 1
+                if (pass == 2) nl%nbr(cnt) = j
+              end if
+            end do
+          end do
+        end do
+      end do
+      if (pass == 1 .and. cnt > size(nl%nbr)) then
+        deallocate(nl%nbr)
+        allocate(nl%nbr(cnt + cnt/4 + 16))
+      end if
+    end do
+    nl%start(n + 1) = cnt + 1
+    nl%pairs = cnt
+    nl%xref = x
+    nl%yref = y
+    nl%valid = .true.
+    nl%builds = nl%builds + 1
+  end subroutine nlist_build
+
+end module neighbours
