@@ -3,6 +3,7 @@
     pyorch run SCENE.nml [--out DIR] [--set group.key=value ...] [--door exe|f2py] [--no-plots]
     pyorch check SCENE.nml [--set ...]
     pyorch plot RUN_DIR [--out DIR]
+    pyorch bench trade|bias [--scene S] [--seeds N] [--quick] [--out DIR]
 """
 from __future__ import annotations
 
@@ -33,6 +34,13 @@ def _parser() -> argparse.ArgumentParser:
     pl = sub.add_parser("plot", help="write the standard figures of a run directory")
     pl.add_argument("run_dir", type=Path)
     pl.add_argument("--out", type=Path, default=None)
+
+    b = sub.add_parser("bench", help="speed/accuracy trade study or truncation bias study")
+    b.add_argument("what", choices=["trade", "bias"])
+    b.add_argument("--scene", type=Path, default=Path("runs/bench_compression.nml"))
+    b.add_argument("--seeds", type=int, default=3)
+    b.add_argument("--quick", action="store_true", help="4 settings only (smoke test)")
+    b.add_argument("--out", type=Path, default=Path("bench/results"))
     return p
 
 
@@ -47,6 +55,10 @@ def main(argv: list[str] | None = None) -> int:
             info = validate(Scene.read(args.scene).with_overrides(args.overrides))
             print(f"ok: {info['n_particles']} particles, {info['n_steps']} steps")
             return 0
+        if args.cmd == "bench":
+            from pyorch.bench import main_bench
+
+            return main_bench(args)
         if args.cmd == "plot":
             from pyorch.plots import save_run_plots
 
@@ -66,7 +78,12 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from pyorch.run import run
     from pyorch.scene import Scene
 
+    from pyorch.bench import apply_target
+
     scene = Scene.read(args.scene).with_overrides(args.overrides)
+    scene, choice = apply_target(scene)
+    if choice:
+        print(choice)
     out = args.out or Path("runs") / "out" / args.scene.stem
     result = run(scene, out, door=args.door, progress=not args.quiet)
     meta = result.meta

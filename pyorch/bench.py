@@ -1,0 +1,335 @@
+"""The speed/accuracy trade, measured (user rule 1).
+
+``trade_study`` runs one scene (default runs/bench_compression.nml: the
+standard bed compressed to maximum compression) over a grid of knobs
+(neighbour strategy, cut-off r_c, skin, truncation/tail, time step dt,
+integrator) and seeds, and reports for every setting: wall time per step,
+pair evaluations per second, list builds, and the error against the
+reference (O(N^2), smallest dt) of
+
+* F_max   - piston force at maximum compression [m1 g] (relative error),
+* D_hat   - mean inter-particle distance at maximum compression [D1] (relative),
+* n6      - fraction of hexagonal Voronoi cells at maximum compression (absolute).
+
+Errors are averaged over seeds (paired with the reference of the same seed).
+Because the bed is a chaotic many-body system, any perturbation (even
+round-off) decorrelates trajectories: the study also measures this noise
+floor by re-running the reference with 2 threads (a round-off-level change).
+
+``choose`` picks the cheapest measured setting meeting a target relative
+error; ``pyorch run`` uses it when a scene sets ``&integration
+target_rel_error``.
+
+Reproduce: ``pyorch bench trade`` (about 10 minutes on one core), outputs in
+bench/results/: trade.csv, trade_pareto.png; ``pyorch bench bias`` for the
+truncation bias vs r_c (bias.csv, bias.png).
+"""
+from __future__ import annotations
+
+import itertools
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Iterable, Sequence
+
+import numpy as np
+import pandas as pd
+
+from pyorch import io
+from pyorch.run import Run, run
+from pyorch.scene import Scene
+
+ROOT = Path(__file__).resolve().parents[1]
+KNOBS = ["neighbour", "r_cut", "skin", "truncation", "tail", "dt", "integrator"]
+BASELINE: dict[str, Any] = {"neighbour": "verlet", "r_cut": 7.13, "skin": 1.0,
+                            "truncation": "plain", "tail": "none", "dt": 2.0e-3,
+                            "integrator": "stormer_verlet"}
+REFERENCE: dict[str, Any] = dict(BASELINE, neighbour="all_pairs", dt=5.0e-4)
+
+
+@dataclass(frozen=True)
+class Setting:
+    """One point of the grid: the knob values (keys of KNOBS)."""
+
+    values: tuple[tuple[str, Any], ...]
+
+    @classmethod
+    def of(cls, **kw: Any) -> "Setting":
+        merged = dict(BASELINE, **kw)
+        return cls(tuple((k, merged[k]) for k in KNOBS))
+
+    @property
+    def d(self) -> dict[str, Any]:
+        return dict(self.values)
+
+    def overrides(self) -> dict[str, Any]:
+        return {f"integration.{k}": v for k, v in self.values}
+
+    def label(self) -> str:
+        d = self.d
+        parts = [d["neighbour"]]
+        if d["neighbour"] != "all_pairs":
+            parts += [f"rc{d['r_cut']:g}", f"skin{d['skin']:g}"]
+            if d["truncation"] != "plain":
+                parts.append("sf")
+            if d["tail"] != "none":
+                parts.append("tail")
+        parts += [f"dt{d['dt']:g}", {"stormer_verlet": "SV", "velocity_verlet": "VV",
+                                     "euler": "Eu"}[d["integrator"]]]
+        return "_".join(parts)
+
+
+def default_grid(quick: bool = False) -> list[Setting]:
+    """One knob at a time around the baseline, plus corrections at short r_c."""
+    if quick:
+        return [Setting.of(), Setting.of(neighbour="cells"), Setting.of(r_cut=4.0),
+                Setting.of(dt=4.0e-3)]
+    grid = [Setting.of(neighbour=s) for s in ("all_pairs", "cells", "verlet", "thesis")]
+    grid += [Setting.of(neighbour="thesis", r_cut=7.13, skin=4.13)]  # thesis' r_v = 11.26
+    grid += [Setting.of(r_cut=rc) for rc in (3.0, 4.13, 5.0, 10.0, 14.0)]
+    grid += [Setting.of(skin=s) for s in (0.25, 0.5, 2.0, 4.0)]
+    grid += [Setting.of(dt=h) for h in (5.0e-4, 1.0e-3, 4.0e-3, 8.0e-3)]
+    grid += [Setting.of(integrator=i) for i in ("velocity_verlet", "euler")]
+    grid += [Setting.of(integrator="euler", dt=5.0e-4)]
+    grid += [Setting.of(r_cut=rc, truncation="shifted_force") for rc in (3.0, 5.0, 7.13)]
+    grid += [Setting.of(r_cut=rc, tail="frozen") for rc in (3.0, 5.0, 7.13)]
+    seen: dict[Setting, None] = {}
+    for s in grid:
+        seen.setdefault(s, None)
+    return list(seen)
+
+
+def measure(r: Run) -> dict[str, Any]:
+    """Metrics of a finished run of the trade scene (compression to the end)."""
+    meta = r.meta
+    out: dict[str, Any] = {"status": meta["status"],
+                           "time_per_step_s": meta["wall_time_per_step_s"],
+                           "wall_time_s": meta["wall_time_s"],
+                           "steps": meta["steps_done"],
+                           "list_builds": meta.get("list_builds", 0),
+                           "pairs_per_step": meta.get("pairs_per_step", 0)}
+    out["pair_evals_per_s"] = out["pairs_per_step"] / max(out["time_per_step_s"], 1e-30)
+    if meta["status"] != "completed":
+        return out
+    pis = r.piston()
+    out["F_max"] = float(pis["F_piston"].iloc[-1])
+    md = r.mean_distance()
+    out["D_hat"] = float(md["D_hat"].iloc[-1])
+    from pyorch.analysis import frame_metrics
+
+    frame = io.frame_at(r.frames())
+    out["n6"] = float(frame_metrics(frame)["n6"])
+    return out
+
+
+def run_setting(base: Scene, setting: Setting, seed: int, out_dir: Path,
+                threads: int = 1) -> dict[str, Any]:
+    """Run one (setting, seed) and return its row (never raises on engine failure)."""
+    name = f"{setting.label()}_seed{seed}_th{threads}"
+    scene = base.with_overrides(dict(setting.overrides(), **{"particles.seed": seed}))
+    row: dict[str, Any] = dict(setting.d, seed=seed, threads=threads, label=setting.label())
+    try:
+        r = run(scene, out_dir / name, progress=False, threads=threads)
+        row.update(measure(r))
+    except Exception as exc:  # a failed setting is a measured outcome (e.g. unstable dt)
+        row.update(status=f"failed: {exc}")
+    return row
+
+
+def add_errors(rows: pd.DataFrame) -> pd.DataFrame:
+    """Per-row errors against the reference rows (neighbour all_pairs, smallest dt, 1 thread)."""
+    ref_mask = rows["label"].eq(Setting.of(**REFERENCE).label()) & rows["threads"].eq(1)
+    ref = rows[ref_mask].set_index("seed")
+    out = rows.copy()
+    for col, kind in (("F_max", "rel"), ("D_hat", "rel"), ("n6", "abs")):
+        r = out["seed"].map(ref[col])
+        diff = out[col] - r
+        out[f"err_{col}"] = (diff / r).abs() if kind == "rel" else diff.abs()
+        out[f"bias_{col}"] = diff / r if kind == "rel" else diff
+    return out
+
+
+def summarise(rows: pd.DataFrame) -> pd.DataFrame:
+    """One row per setting: mean time and errors over seeds."""
+    ok = rows[rows["status"].eq("completed")]
+    agg = {"time_per_step_s": "mean", "pair_evals_per_s": "mean", "list_builds": "mean",
+           "pairs_per_step": "mean", "err_F_max": "mean", "err_D_hat": "mean", "err_n6": "mean",
+           "bias_F_max": "mean", "bias_D_hat": "mean", "bias_n6": "mean", "seed": "count"}
+    table = ok.groupby(["label", "threads"] + KNOBS, dropna=False).agg(agg).reset_index()
+    table = table.rename(columns={"seed": "n_seeds"})
+    failed = rows[~rows["status"].eq("completed")]
+    if not failed.empty:
+        f = failed.groupby(["label", "threads"] + KNOBS, dropna=False)["status"].first().reset_index()
+        table = pd.concat([table, f], ignore_index=True)
+    table["err_max"] = table[["err_F_max", "err_D_hat"]].max(axis=1)
+    return table.sort_values("time_per_step_s").reset_index(drop=True)
+
+
+def trade_study(base_path: Path, settings: Sequence[Setting], seeds: Iterable[int],
+                out_dir: Path, progress: bool = True) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Run reference + settings for every seed; return (rows, summary)."""
+    base = Scene.read(base_path)
+    seeds = list(seeds)
+    ref = Setting.of(**REFERENCE)
+    jobs = [(ref, s, 1) for s in seeds] + [(ref, s, 2) for s in seeds]
+    jobs += [(st, s, 1) for st, s in itertools.product(settings, seeds) if st != ref]
+    rows = []
+    iterator: Iterable[Any] = jobs
+    if progress:
+        from tqdm import tqdm
+
+        iterator = tqdm(jobs, desc="trade study", unit="run")
+    for st, seed, threads in iterator:
+        rows.append(run_setting(base, st, seed, out_dir / "runs", threads))
+    df = add_errors(pd.DataFrame(rows))
+    return df, summarise(df)
+
+
+def pareto_front(table: pd.DataFrame, err: str = "err_max") -> pd.DataFrame:
+    """Settings not beaten in both time per step and error."""
+    t = table.dropna(subset=[err, "time_per_step_s"]).sort_values("time_per_step_s")
+    best = np.inf
+    keep = []
+    for idx, e in zip(t.index, t[err]):
+        if e < best:
+            keep.append(idx)
+            best = e
+    return t.loc[keep]
+
+
+def pareto_plot(table: pd.DataFrame, path: Path, noise: float | None = None) -> Path:
+    """Time per step vs error, one marker per knob family (thesis Fig. 5.2, for every knob)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    t = table[table["threads"].eq(1)].dropna(subset=["err_max"])
+    fig, ax = plt.subplots(figsize=(7, 5))
+    fam = np.where(t["neighbour"].eq("all_pairs"), "all_pairs",
+                   np.where(t["tail"].eq("frozen"), "verlet + frozen tail",
+                            np.where(t["truncation"].eq("shifted_force"), "verlet shifted force",
+                                     t["neighbour"])))
+    for name in pd.unique(fam):
+        part = t[fam == name]
+        ax.scatter(part["time_per_step_s"] * 1e6, part["err_max"].clip(lower=1e-6), label=name, s=25)
+    for _, row in t.iterrows():
+        ax.annotate(row["label"], (row["time_per_step_s"] * 1e6, max(row["err_max"], 1e-6)),
+                    fontsize=5, alpha=0.7)
+    front = pareto_front(t)
+    ax.plot(front["time_per_step_s"] * 1e6, front["err_max"].clip(lower=1e-6), "k--", lw=0.8,
+            label="Pareto front")
+    if noise is not None:
+        ax.axhline(noise, color="grey", ls=":", label="chaos noise floor (1 vs 2 threads)")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("wall time per step [us] (1 core)")
+    ax.set_ylabel("max relative error of F_max, D_hat vs O(N^2), smallest dt")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+    return path
+
+
+def choose(table: pd.DataFrame, target_rel_error: float) -> pd.Series:
+    """Cheapest measured setting whose F_max and D_hat errors are below the target."""
+    t = table[table["threads"].eq(1)].dropna(subset=["err_max"])
+    ok = t[t["err_max"] <= target_rel_error]
+    if ok.empty:
+        best = t.sort_values("err_max").iloc[0]
+        raise ValueError(f"no measured setting reaches a relative error of {target_rel_error:g}; "
+                         f"the most accurate one measured is {best['label']} "
+                         f"({best['err_max']:.2e})")
+    return ok.sort_values("time_per_step_s").iloc[0]
+
+
+def overrides_for(row: pd.Series) -> dict[str, Any]:
+    """Scene overrides reproducing a table row's setting."""
+    out = {}
+    for k in KNOBS:
+        v = row[k]
+        if isinstance(v, (np.floating, np.integer)):
+            v = v.item()
+        out[f"integration.{k}"] = v
+    return out
+
+
+DEFAULT_TABLE = ROOT / "bench" / "results" / "trade.csv"
+
+
+def apply_target(scene: Scene, table_path: Path = DEFAULT_TABLE) -> tuple[Scene, str | None]:
+    """If the scene asks for target_rel_error, return it with the cheapest measured
+    setting applied and a one-line description of the choice."""
+    target = float(scene.get("integration", "target_rel_error", 0.0) or 0.0)
+    if target <= 0:
+        return scene, None
+    if not Path(table_path).is_file():
+        raise FileNotFoundError(f"target_rel_error = {target:g} needs the measured table "
+                                f"{table_path} (run: pyorch bench trade)")
+    row = choose(pd.read_csv(table_path), target)
+    msg = (f"target_rel_error {target:g}: chose {row['label']} "
+           f"(measured error {row['err_max']:.2e}, {row['time_per_step_s'] * 1e6:.1f} us/step "
+           f"on the trade scene)")
+    return scene.with_overrides(overrides_for(row)), msg
+
+
+def bias_study(base_path: Path, r_cuts: Sequence[float], seeds: Iterable[int], out_dir: Path,
+               progress: bool = True) -> pd.DataFrame:
+    """Truncation bias of F_max, D_hat, n6 vs r_c: plain, shifted force, frozen tail."""
+    settings = [Setting.of(r_cut=rc, truncation=tr, tail=tl)
+                for rc in r_cuts for tr, tl in (("plain", "none"), ("shifted_force", "none"),
+                                                 ("plain", "frozen"))]
+    rows, _ = trade_study(base_path, settings, seeds, out_dir, progress)
+    return rows
+
+
+def main_bench(args: Any) -> int:
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    seeds = list(range(1, args.seeds + 1))
+    if args.what == "trade":
+        rows, table = trade_study(Path(args.scene), default_grid(args.quick), seeds, out / "trade")
+        rows.to_csv(out / "trade_rows.csv", index=False)
+        table.to_csv(out / "trade.csv", index=False)
+        ref2 = rows[rows["threads"].eq(2) & rows["neighbour"].eq("all_pairs")]
+        noise = float(ref2[["err_F_max", "err_D_hat"]].max(axis=1).mean()) if not ref2.empty else None
+        pareto_plot(table, out / "trade_pareto.png", noise)
+        (out / "trade_meta.json").write_text(json.dumps({"noise_floor": noise, "seeds": seeds}))
+        cols = ["label", "time_per_step_s", "pair_evals_per_s", "list_builds", "err_F_max",
+                "err_D_hat", "err_n6", "bias_F_max"]
+        print(table[table["threads"].eq(1)][cols].to_string(index=False))
+        print(f"noise floor (reference, 1 vs 2 threads): {noise}")
+    else:
+        rows = bias_study(Path(args.scene), [3.0, 4.13, 5.0, 7.13, 10.0, 14.0], seeds, out / "bias")
+        rows.to_csv(out / "bias_rows.csv", index=False)
+        table = summarise(rows)
+        table.to_csv(out / "bias.csv", index=False)
+        bias_plot(table, out / "bias.png")
+        print(table[["label", "bias_F_max", "err_F_max", "bias_D_hat", "bias_n6",
+                     "time_per_step_s"]].to_string(index=False))
+    return 0
+
+
+def bias_plot(table: pd.DataFrame, path: Path) -> Path:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    t = table[table["neighbour"].eq("verlet")]
+    fig, axes = plt.subplots(1, 2, figsize=(9, 3.8))
+    for (tr, tl), part in t.groupby(["truncation", "tail"]):
+        part = part.sort_values("r_cut")
+        name = "frozen tail" if tl == "frozen" else tr
+        axes[0].plot(part["r_cut"], 100 * part["bias_F_max"], "o-", label=name)
+        axes[1].plot(part["r_cut"], 100 * part["bias_D_hat"], "o-", label=name)
+    for ax, what in zip(axes, ("F_max", "D_hat")):
+        ax.axhline(0, color="k", lw=0.6)
+        ax.set_xlabel("cut-off r_c [D1]")
+        ax.set_ylabel(f"bias of {what} vs O(N^2) [%]")
+    axes[0].legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+    return path
