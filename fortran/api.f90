@@ -4,13 +4,16 @@ module api
   use kinds, only: dp
   use errors, only: status_t
   use api_state, only: the_sim
-  use engine, only: sim_t, sim_load, sim_execute, sim_forces, sim_step, sim_energy
+  use kinds, only: i8
+  use engine, only: sim_t, sim_load, sim_forces, sim_step, sim_energy
+  use runner, only: sim_execute, sim_resume
   use protocol, only: piston_at
   use pair_forces, only: dipole_kernel
   use neighbours, only: nlist_due
+  use integrators, only: estimate_velocity, finish_velocity
   implicit none
   private
-  public :: run_scene, load_scene, n_particles, get_state, set_state, compute_forces, &
+  public :: run_scene, resume_run, load_scene, n_particles, get_state, set_state, compute_forces, &
        advance_steps, piston_state, model_groups, energies, kernel, precision_probe, &
        set_threads, list_audit
 
@@ -22,10 +25,21 @@ contains
     integer, intent(out) :: code
     character(len=1024), intent(out) :: message
     type(status_t) :: st
-    call sim_execute(path, outdir, .false., st)
+    call sim_execute(path, outdir, .false., -1_i8, st)
     code = st%code
     message = st%msg
   end subroutine run_scene
+
+  !> Continue run directory `rundir` from its checkpoint, as magbed --resume does.
+  subroutine resume_run(rundir, code, message)
+    character(len=*), intent(in) :: rundir
+    integer, intent(out) :: code
+    character(len=1024), intent(out) :: message
+    type(status_t) :: st
+    call sim_resume(rundir, .false., -1_i8, st)
+    code = st%code
+    message = st%msg
+  end subroutine resume_run
 
   !> Load and validate a scene into the in-memory simulation (writes nothing).
   subroutine load_scene(path, code, message)
@@ -82,13 +96,18 @@ contains
     the_sim%nl%valid = .false.
   end subroutine set_state
 
-  !> Forces at the current state and time (fx, fy via get_state).
+  !> Forces at the current state and time, and the velocities v_n that go
+  !> with them (both via get_state; advance_steps alone leaves the
+  !> velocity arrays at the integrator's internal stage).
   subroutine compute_forces(code, message)
     integer, intent(out) :: code
     character(len=1024), intent(out) :: message
     type(status_t) :: st
     call piston_at(the_sim%p, the_sim%s%t, the_sim%s%piston_h, the_sim%s%phase)
+    if (the_sim%need_velocity) call estimate_velocity(the_sim%m%integrator, the_sim%m%dt, &
+         the_sim%s)
     call sim_forces(the_sim, .false., st)
+    if (st%code == 0) call finish_velocity(the_sim%m%integrator, the_sim%m%dt, the_sim%s)
     code = st%code
     message = st%msg
   end subroutine compute_forces

@@ -1,6 +1,5 @@
-!> The engine: load a scene, open a run directory, step, finish. Both doors
-!> (the executable and the f2py module) go through sim_execute, so they
-!> produce the same files for the same scene.
+!> The engine: load a scene, compute forces (with the runtime guards), step.
+!> Running a whole scene into a run directory is module runner's job.
 module engine
   use, intrinsic :: iso_fortran_env, only: output_unit
   use kinds, only: dp, i8, pi
@@ -18,13 +17,11 @@ module engine
   use friction, only: gravity_force, viscous_friction, dry_friction
   use integrators, only: estimate_velocity, finish_velocity, advance
   use observables, only: mean_distance, packing_fraction, kinetic_energy
-  use output, only: output_t, output_open, output_close, output_flush, write_piston, &
-       write_frame, write_distance, write_energy, write_run_json, make_dir
+  use output, only: output_t, write_piston, write_frame, write_distance, write_energy
   implicit none
   private
 
-  public :: sim_t, sim_load, sim_open_output, sim_forces, sim_step, sim_run, &
-       sim_finish, sim_execute, sim_energy
+  public :: sim_t, sim_load, sim_forces, sim_step, sim_energy, pairs_per_step
 
   type :: sim_t
     type(scene_t) :: sc
@@ -39,7 +36,9 @@ module engine
     logical :: need_velocity = .false.  !< some force depends on velocity
     real(dp) :: area = 0                !< total particle area [D1^2]
     integer(i8) :: progress_every = 1
-    integer(i8) :: clock0 = 0
+    integer(i8) :: clock0 = 0           !< system_clock at the start of this process' run
+    real(dp) :: wall_before = 0         !< wall time of earlier segments (resumed runs) [s]
+    character(len=:), allocatable :: dir  !< run directory
   end type sim_t
 
 contains
@@ -97,42 +96,46 @@ contains
     end if
   end subroutine build_rest
 
-  !> Create the run directory and its files; write scene.nml and run.json.
-  subroutine sim_open_output(sim, dir, st)
-    type(sim_t), intent(inout) :: sim
-    character(len=*), intent(in) :: dir
-    type(status_t), intent(inout) :: st
-    call make_dir(dir, st)
-    if (st%code /= 0) return
-    call scene_write(trim(dir)//'/scene.nml', sim%sc, st)
-    if (st%code /= 0) return
-    call output_open(sim%o, dir, sim%m, sim%sc%piston_every > 0, sim%sc%frame_every > 0, &
-         sim%sc%distance_every > 0, sim%sc%energy_every > 0, st)
-    if (st%code /= 0) return
-    sim%writing = .true.
-    call system_clock(sim%clock0)
-    call write_run_json(dir, sim%scene_path, 'running', 0, '', sim%s%step, sim%p%n_steps, &
-         sim%s%t, 0.0_dp, sim%m, sim%s%n, 0_i8, pairs_per_step(sim), st)
-  end subroutine sim_open_output
-
   !> Forces at the current positions (and velocity estimate). need_fmag also
   !> fills |magnetic force| per particle. Guards: particle outside the cell.
   subroutine sim_forces(sim, need_fmag, st)
     type(sim_t), intent(inout) :: sim
     logical, intent(in) :: need_fmag
     type(status_t), intent(inout) :: st
-    integer :: bad
+    integer :: bad, i, j, bi, bj
     character(len=800) :: buf
+    real(dp) :: r2min, d2
     associate (s => sim%s, m => sim%m)
       s%fx = 0
       s%fy = 0
       if (m%dry_order > 0) s%s3 = 0
-      if (m%pair_law == law_dipole) call pair_pass(sim)
+      if (m%pair_law == law_dipole) then
+        call pair_pass(sim, r2min)
+        if (r2min < sim%sc%min_distance**2) then
+          ! rare: find the pair by brute force for the message
+          r2min = huge(1.0_dp); bi = 1; bj = 1
+          do i = 1, s%n - 1
+            do j = i + 1, s%n
+              d2 = (s%x(i) - s%x(j))**2 + (s%y(i) - s%y(j))**2
+              if (d2 < r2min) then
+                r2min = d2; bi = i; bj = j
+              end if
+            end do
+          end do
+          write(buf, '(a,i0,a,es12.5,a,i0,a,i0,a,es12.5,a,2(es12.5,1x),a,2(es12.5,1x),a,f6.3,a)') &
+               'step ', s%step, ' t = ', s%t, ' T: particles ', s%id(bi), ' and ', s%id(bj), &
+               ' are ', sqrt(r2min), ' D1 apart (at ', s%x(bi), s%y(bi), 'and ', s%x(bj), &
+               s%y(bj), ') < min_distance = ', sim%sc%min_distance, &
+               ' D1: the r^-4 force is singular; reduce dt'
+          call set_error(st, exit_numerical, trim(buf))
+          return
+        end if
+      end if
       call wall_forces(s%n, s%x, s%y, s%mu, m%wall_law, m%k_wall, m%width, m%height, &
            s%piston_h, m%piston_mode /= piston_none, s%fx, s%fy, s%piston_force, bad)
       if (bad /= 0) then
         write(buf, '(a,i0,a,es12.5,a,i0,a,es12.5,a,es12.5,a,es12.5,a)') 'step ', s%step, &
-             ' t = ', s%t, ' T: particle ', bad, ' left the cell or became non-finite (x = ', &
+             ' t = ', s%t, ' T: particle ', s%id(bad), ' left the cell or became non-finite (x = ', &
              s%x(bad), ', y = ', s%y(bad), ' D1; piston at ', s%piston_h, &
              ' D1): reduce dt or check the scene'
         call set_error(st, exit_numerical, trim(buf))
@@ -143,17 +146,27 @@ contains
       if (m%dry_order > 0) call dry_friction(s%n, s%nfac, s%s3, m%mu_s, m%mu_d, m%v_t, &
            s%vx, s%vy, s%fx, s%fy)
       if (m%viscous_on) call viscous_friction(s%n, s%mass, m%gamma, s%vx, s%vy, s%fx, s%fy)
+      do i = 1, s%n
+        if (.not. (abs(s%fx(i)) <= huge(1.0_dp) .and. abs(s%fy(i)) <= huge(1.0_dp))) then
+          write(buf, '(a,i0,a,es12.5,a,i0,a,es12.5,1x,es12.5,a,es12.5,1x,es12.5,a)') 'step ', &
+               s%step, ' t = ', s%t, ' T: non-finite force on particle ', s%id(i), ' (f = ', &
+               s%fx(i), s%fy(i), ' at ', s%x(i), s%y(i), '): reduce dt or check the scene'
+          call set_error(st, exit_numerical, trim(buf))
+          return
+        end if
+      end do
     end associate
   end subroutine sim_forces
 
   !> Pair forces through the scene's neighbour strategy (+ frozen far field).
-  subroutine pair_pass(sim)
+  subroutine pair_pass(sim, r2min)
     type(sim_t), intent(inout) :: sim
+    real(dp), intent(out) :: r2min   !< smallest squared pair distance seen [D1^2]
     logical :: r3
     associate (s => sim%s, m => sim%m, nl => sim%nl)
       r3 = m%dry_order > 0
       if (m%neighbour == nb_all_pairs) then
-        call pair_forces_all(s%n, s%x, s%y, s%mu, s%wsin, m%k_pair, r3, s%fx, s%fy, s%s3)
+        call pair_forces_all(s%n, s%x, s%y, s%mu, s%wsin, m%k_pair, r3, s%fx, s%fy, s%s3, r2min)
         return
       end if
       if (nlist_due(nl, s%n, s%x, s%y)) then
@@ -166,7 +179,7 @@ contains
         call nlist_build(nl, s%n, s%x, s%y)
       end if
       call pair_forces_list(s%n, s%x, s%y, s%mu, s%wsin, m%k_pair, m%r_cut**2, m%shift4, &
-           nl%check, r3, nl%start, nl%nbr, s%fx, s%fy, s%s3)
+           nl%check, r3, nl%start, nl%nbr, s%fx, s%fy, s%s3, r2min)
       if (m%tail_frozen) then
         if (mod(s%step, int(m%tail_every, i8)) == 0 .or. .not. s%tail_ready) then
           call pair_forces_far(s%n, s%x, s%y, s%mu, s%wsin, m%k_pair, m%r_cut**2, r3, &
@@ -246,69 +259,5 @@ contains
       s%t = real(s%step, dp)*m%dt
     end associate
   end subroutine sim_step
-
-  !> Step until step n_stop (default: the protocol's end), then write the final state.
-  subroutine sim_run(sim, st, n_stop)
-    type(sim_t), intent(inout) :: sim
-    type(status_t), intent(inout) :: st
-    integer(i8), intent(in), optional :: n_stop
-    integer(i8) :: stop_at
-    stop_at = sim%p%n_steps
-    if (present(n_stop)) stop_at = min(n_stop, sim%p%n_steps)
-    do while (sim%s%step < stop_at)
-      call sim_step(sim, st)
-      if (st%code /= 0) return
-      if (sim%progress .and. mod(sim%s%step, sim%progress_every) == 0) call progress_line(sim)
-    end do
-    if (sim%s%step >= sim%p%n_steps) call sim_step(sim, st, final=.true.)
-  end subroutine sim_run
-
-  subroutine progress_line(sim)
-    type(sim_t), intent(in) :: sim
-    write(output_unit, '(a,i0,1x,i0,1x,es12.5,1x,a,1x,es12.5)') 'progress ', sim%s%step, &
-         sim%p%n_steps, sim%s%t, trim(phase_names(sim%s%phase)), sim%s%piston_force
-    flush(output_unit)
-  end subroutine progress_line
-
-  !> Close files and write the final run.json (status completed or failed).
-  subroutine sim_finish(sim, st)
-    type(sim_t), intent(inout) :: sim
-    type(status_t), intent(inout) :: st
-    type(status_t) :: st2
-    integer(i8) :: clock1, rate
-    real(dp) :: wall
-    character(len=:), allocatable :: status
-    if (.not. sim%writing) return
-    call output_close(sim%o)
-    call system_clock(clock1, rate)
-    wall = real(clock1 - sim%clock0, dp)/real(rate, dp)
-    if (st%code == exit_ok) then
-      status = 'completed'
-    else
-      status = 'failed: '//trim(st%msg)
-    end if
-    call write_run_json(sim%o%dir, sim%scene_path, status, st%code, trim(st%msg), &
-         sim%s%step, sim%p%n_steps, sim%s%t, wall, sim%m, sim%s%n, sim%nl%builds, &
-         pairs_per_step(sim), st2)
-    if (st%code == exit_ok .and. st2%code /= exit_ok) st = st2
-    sim%writing = .false.
-  end subroutine sim_finish
-
-  !> The whole run, as both doors do it: load (nothing written on bad input),
-  !> open the run directory, run, finish.
-  subroutine sim_execute(path, dir, progress, st)
-    character(len=*), intent(in) :: path, dir
-    logical, intent(in) :: progress
-    type(status_t), intent(inout) :: st
-    type(sim_t) :: sim
-    call sim_load(sim, path, st)
-    if (st%code /= 0) return
-    sim%progress = progress
-    call sim_open_output(sim, dir, st)
-    if (st%code /= 0) return
-    call sim_run(sim, st)
-    call output_flush(sim%o)
-    call sim_finish(sim, st)
-  end subroutine sim_execute
 
 end module engine

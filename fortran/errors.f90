@@ -6,7 +6,7 @@ module errors
   private
 
   public :: status_t, set_error, msg_len
-  public :: exit_ok, exit_internal, exit_bad_input, exit_numerical, exit_io
+  public :: exit_ok, exit_internal, exit_bad_input, exit_numerical, exit_io, exit_interrupted
 
   integer, parameter :: msg_len = 1024
   integer, parameter :: exit_ok = 0          !< success
@@ -14,6 +14,7 @@ module errors
   integer, parameter :: exit_bad_input = 2   !< the scene was refused
   integer, parameter :: exit_numerical = 3   !< a runtime guard stopped the run
   integer, parameter :: exit_io = 4          !< a file could not be read/written
+  integer, parameter :: exit_interrupted = 5 !< SIGTERM/SIGINT: checkpoint written, resumable
 
   type :: status_t
     integer :: code = exit_ok              !< one of the exit_* codes

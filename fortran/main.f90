@@ -1,11 +1,16 @@
 !> magbed: the standalone engine.
-!>   magbed SCENE.nml [--out DIR] [--check] [--quiet]
-!> Exit codes: 0 ok, 2 bad input (nothing written), 3 numerical guard, 4 I/O.
+!>   magbed SCENE.nml [--out DIR] [--check] [--quiet] [--stop-at STEP]
+!>   magbed --resume RUN_DIR [--quiet] [--stop-at STEP]
+!> Exit codes: 0 ok (or paused by --stop-at), 2 bad input (nothing written),
+!> 3 numerical guard, 4 I/O, 5 interrupted by SIGTERM/SIGINT (checkpoint written).
 program magbed
   use, intrinsic :: iso_fortran_env, only: error_unit, output_unit
   use, intrinsic :: iso_c_binding, only: c_int
+  use kinds, only: i8
   use errors, only: status_t, exit_bad_input
-  use engine, only: sim_t, sim_load, sim_execute
+  use engine, only: sim_t, sim_load
+  use runner, only: sim_execute, sim_resume
+  use signals, only: install_handlers
   implicit none
   interface
     !> libc exit: a non-zero status without gfortran's "ERROR STOP"/backtrace noise
@@ -16,11 +21,14 @@ program magbed
   end interface
   type(status_t) :: st
   type(sim_t) :: sim
-  character(len=4096) :: arg, path, dir
+  character(len=4096) :: arg, path, dir, resume_dir
   logical :: check, quiet
-  integer :: i, nargs
+  integer :: i, nargs, ios
+  integer(i8) :: stop_at
 
   path = ''
+  resume_dir = ''
+  stop_at = -1
   dir = '.'
   check = .false.
   quiet = .false.
@@ -35,10 +43,21 @@ program magbed
       call get_command_argument(i, dir)
     case ('--check')
       check = .true.
+    case ('--resume')
+      i = i + 1
+      if (i > nargs) call usage('--resume needs a run directory')
+      call get_command_argument(i, resume_dir)
+    case ('--stop-at')
+      i = i + 1
+      if (i > nargs) call usage('--stop-at needs a step number')
+      call get_command_argument(i, arg)
+      read(arg, *, iostat=ios) stop_at
+      if (ios /= 0 .or. stop_at < 0) call usage('--stop-at needs a step number >= 0')
     case ('--quiet', '-q')
       quiet = .true.
     case ('--help', '-h')
-      write(output_unit, '(a)') 'usage: magbed SCENE.nml [--out DIR] [--check] [--quiet]'
+      write(output_unit, '(a)') 'usage: magbed SCENE.nml [--out DIR] [--check] [--quiet] [--stop-at STEP]'
+      write(output_unit, '(a)') '       magbed --resume RUN_DIR [--quiet] [--stop-at STEP]'
       stop
     case default
       if (arg(1:1) == '-') call usage('unknown option '//trim(arg))
@@ -47,16 +66,22 @@ program magbed
     end select
     i = i + 1
   end do
-  if (len_trim(path) == 0) call usage('missing scene file')
+  if (len_trim(path) == 0 .and. len_trim(resume_dir) == 0) call usage('missing scene file')
+  if (len_trim(path) > 0 .and. len_trim(resume_dir) > 0) &
+       call usage('give a scene file or --resume RUN_DIR, not both')
 
-  if (check) then
+  if (len_trim(resume_dir) > 0) then
+    call install_handlers()
+    call sim_resume(trim(resume_dir), .not. quiet, stop_at, st)
+  else if (check) then
     call sim_load(sim, trim(path), st)
     if (st%code == 0) then
       write(output_unit, '(a,i0,a,i0,a)') 'ok: ', sim%s%n, ' particles, ', sim%p%n_steps, ' steps'
       stop
     end if
   else
-    call sim_execute(trim(path), trim(dir), .not. quiet, st)
+    call install_handlers()
+    call sim_execute(trim(path), trim(dir), .not. quiet, stop_at, st)
   end if
   if (st%code /= 0) then
     write(error_unit, '(a)') 'magbed: error: '//trim(st%msg)
@@ -69,7 +94,8 @@ contains
   subroutine usage(msg)
     character(len=*), intent(in) :: msg
     write(error_unit, '(a)') 'magbed: error: '//msg
-    write(error_unit, '(a)') 'usage: magbed SCENE.nml [--out DIR] [--check] [--quiet]'
+    write(error_unit, '(a)') 'usage: magbed SCENE.nml [--out DIR] [--check] [--quiet] [--stop-at STEP]'
+    write(error_unit, '(a)') '       magbed --resume RUN_DIR [--quiet] [--stop-at STEP]'
     flush(error_unit)
     call c_exit(int(exit_bad_input, c_int))
   end subroutine usage

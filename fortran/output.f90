@@ -11,7 +11,8 @@ module output
   private
 
   public :: output_t, output_open, output_close, write_piston, write_frame, &
-       write_distance, write_energy, write_run_json, make_dir, output_flush
+       write_distance, write_energy, write_run_json, make_dir, output_flush, output_sizes, &
+       output_names
 
   type :: output_t
     character(len=:), allocatable :: dir
@@ -31,6 +32,8 @@ module output
   end interface
 
   character(len=*), parameter :: rfmt = 'es24.16e3'
+  character(len=*), parameter :: output_names(4) = [character(len=17) :: 'piston.dat', &
+       'particles.dat', 'mean_distance.dat', 'energy.dat']
 
 contains
 
@@ -47,11 +50,13 @@ contains
     if (.not. there) call set_error(st, exit_io, trim(path)//': cannot create output directory')
   end subroutine make_dir
 
-  subroutine output_open(o, dir, m, piston_on, frames_on, dist_on, energy_on, st)
+  !> Open the output files: fresh with headers, or (append) continued after a
+  !> resume, the files having been cut back to the checkpoint's sizes.
+  subroutine output_open(o, dir, m, piston_on, frames_on, dist_on, energy_on, append, st)
     type(output_t), intent(inout) :: o
     character(len=*), intent(in) :: dir
     type(model_t), intent(in) :: m
-    logical, intent(in) :: piston_on, frames_on, dist_on, energy_on
+    logical, intent(in) :: piston_on, frames_on, dist_on, energy_on, append
     type(status_t), intent(inout) :: st
     character(len=200) :: units
     o%dir = trim(dir)
@@ -74,12 +79,18 @@ contains
       integer, intent(out) :: u
       character(len=*), intent(in) :: name, head1, head2
       integer :: ios
-      open(newunit=u, file=o%dir//'/'//name, status='replace', action='write', iostat=ios)
+      if (append) then
+        open(newunit=u, file=o%dir//'/'//name, status='old', position='append', &
+             action='write', iostat=ios)
+      else
+        open(newunit=u, file=o%dir//'/'//name, status='replace', action='write', iostat=ios)
+      end if
       if (ios /= 0) then
         call set_error(st, exit_io, o%dir//'/'//name//': cannot open for writing')
         u = -1
         return
       end if
+      if (append) return
       write(u, '(a)') head1
       write(u, '(a)') head2
     end subroutine open1
@@ -92,6 +103,18 @@ contains
     if (o%u_dist /= -1) flush(o%u_dist)
     if (o%u_energy /= -1) flush(o%u_energy)
   end subroutine output_flush
+
+  !> Flushed sizes [bytes] of the four files (0 when off), for checkpoints.
+  subroutine output_sizes(o, sizes)
+    type(output_t), intent(in) :: o
+    integer(i8), intent(out) :: sizes(4)
+    call output_flush(o)
+    sizes = 0
+    if (o%u_piston /= -1) inquire(unit=o%u_piston, size=sizes(1))
+    if (o%u_frame /= -1) inquire(unit=o%u_frame, size=sizes(2))
+    if (o%u_dist /= -1) inquire(unit=o%u_dist, size=sizes(3))
+    if (o%u_energy /= -1) inquire(unit=o%u_energy, size=sizes(4))
+  end subroutine output_sizes
 
   subroutine output_close(o)
     type(output_t), intent(inout) :: o

@@ -31,7 +31,7 @@ contains
 
   !> O(N^2) reference: every pair once, Newton's third law applied exactly.
   !> Adds to fx, fy (n) [m1 g]; if with_r3, adds to s3 (n).
-  subroutine pair_forces_all(n, x, y, mu, wsin, k_pair, with_r3, fx, fy, s3)
+  subroutine pair_forces_all(n, x, y, mu, wsin, k_pair, with_r3, fx, fy, s3, r2min)
     integer, intent(in) :: n
     real(dp), intent(in) :: x(n), y(n)       !< positions [D1]
     real(dp), intent(in) :: mu(n)            !< relative moments mu_i/mu1
@@ -40,16 +40,17 @@ contains
     logical, intent(in) :: with_r3           !< accumulate friction sums
     real(dp), intent(inout) :: fx(n), fy(n)  !< forces [m1 g]
     real(dp), intent(inout) :: s3(n)         !< sum_j wsin_j r_ij^-3
+    real(dp), intent(out) :: r2min           !< smallest squared pair distance [D1^2]
     integer :: dummy(1)
     call threaded_pass(mode_all, n, x, y, mu, wsin, k_pair, 0.0_dp, 0.0_dp, 0.0_dp, .false., &
-         with_r3, dummy, dummy, fx, fy, s3)
+         with_r3, dummy, dummy, fx, fy, s3, r2min)
   end subroutine pair_forces_all
 
   !> Half neighbour list (pairs i < j stored once, CSR: the neighbours of i
   !> are nbr(start(i) : start(i+1)-1)). Pairs at r >= r_c are skipped when
   !> check is set (the thesis variant r_c = r_v uses every listed pair).
   subroutine pair_forces_list(n, x, y, mu, wsin, k_pair, rc2, shift4, check, with_r3, &
-       start, nbr, fx, fy, s3)
+       start, nbr, fx, fy, s3, r2min)
     integer, intent(in) :: n
     real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair
     real(dp), intent(in) :: rc2       !< squared cut-off [D1^2]
@@ -57,8 +58,9 @@ contains
     logical, intent(in) :: check, with_r3
     integer, intent(in) :: start(n + 1), nbr(:)
     real(dp), intent(inout) :: fx(n), fy(n), s3(n)
+    real(dp), intent(out) :: r2min    !< smallest squared distance among listed pairs
     call threaded_pass(mode_list, n, x, y, mu, wsin, k_pair, 0.0_dp, rc2, shift4, check, &
-         with_r3, start, nbr, fx, fy, s3)
+         with_r3, start, nbr, fx, fy, s3, r2min)
   end subroutine pair_forces_list
 
   !> The far field: every pair at r >= r_c, O(N^2), for the frozen tail
@@ -69,18 +71,21 @@ contains
     logical, intent(in) :: with_r3
     real(dp), intent(out) :: fx(n), fy(n), s3(n)
     integer :: dummy(1)
+    real(dp) :: r2min
     fx = 0; fy = 0; s3 = 0
     call threaded_pass(mode_all, n, x, y, mu, wsin, k_pair, rc2, 0.0_dp, 0.0_dp, .false., &
-         with_r3, dummy, dummy, fx, fy, s3)
+         with_r3, dummy, dummy, fx, fy, s3, r2min)
   end subroutine pair_forces_far
 
   !> Rows i_lo..i_hi of the all-pairs triangle; pairs with r^2 < r2_min are
   !> masked out (0 for the full sum, r_c^2 for the far field).
-  subroutine rows_all(i_lo, i_hi, n, x, y, mu, wsin, k_pair, r2_min, with_r3, fx, fy, s3)
+  subroutine rows_all(i_lo, i_hi, n, x, y, mu, wsin, k_pair, r2_min, with_r3, fx, fy, s3, &
+       r2low)
     integer, intent(in) :: i_lo, i_hi, n
     real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair, r2_min
     logical, intent(in) :: with_r3
     real(dp), intent(inout) :: fx(n), fy(n), s3(n)
+    real(dp), intent(inout) :: r2low   !< running minimum of r^2
     integer :: i, j
     real(dp) :: xi, yi, ci, dx, dy, r2, s5, r3, c, fxi, fyi, s3i, wi, keep
     do i = i_lo, i_hi
@@ -92,6 +97,7 @@ contains
         dx = xi - x(j)
         dy = yi - y(j)
         r2 = dx*dx + dy*dy
+        r2low = min(r2low, r2)
         keep = merge(1.0_dp, 0.0_dp, r2 >= r2_min)
         call dipole_kernel(r2, 0.0_dp, s5, r3)
         c = keep*ci*mu(j)*s5
@@ -114,12 +120,13 @@ contains
   !> Rows i_lo..i_hi of a half neighbour list. Two passes per chunk: gather
   !> and evaluate (vectorisable), then accumulate on i and scatter on j.
   subroutine rows_list(i_lo, i_hi, n, x, y, mu, wsin, k_pair, rc2, shift4, check, with_r3, &
-       start, nbr, fx, fy, s3)
+       start, nbr, fx, fy, s3, r2low)
     integer, intent(in) :: i_lo, i_hi, n
     real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair, rc2, shift4
     logical, intent(in) :: check, with_r3
     integer, intent(in) :: start(n + 1), nbr(:)
     real(dp), intent(inout) :: fx(n), fy(n), s3(n)
+    real(dp), intent(inout) :: r2low   !< running minimum of r^2
     integer, parameter :: chunk = 256
     integer :: i, j, m, k0, nk
     real(dp) :: xi, yi, ci, wi, fxi, fyi, s3i, r2, keep
@@ -136,6 +143,7 @@ contains
           dxs(m) = xi - x(j)
           dys(m) = yi - y(j)
           r2 = dxs(m)*dxs(m) + dys(m)*dys(m)
+          r2low = min(r2low, r2)
           keep = 1
           if (check) keep = merge(1.0_dp, 0.0_dp, r2 < rc2)
           call dipole_kernel(r2, shift4, cs(m), r3s(m))
@@ -168,19 +176,29 @@ contains
   !> own buffer; buffers are then added in thread order. The result does not
   !> depend on scheduling, and on the thread count only through round-off.
   subroutine threaded_pass(mode, n, x, y, mu, wsin, k_pair, r2_min, rc2, shift4, check, &
-       with_r3, start, nbr, fx, fy, s3)
+       with_r3, start, nbr, fx, fy, s3, r2low)
     !$ use omp_lib, only: omp_get_max_threads, omp_get_thread_num
     integer, intent(in) :: mode, n
     real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair, r2_min, rc2, shift4
     logical, intent(in) :: check, with_r3
     integer, intent(in) :: start(:), nbr(:)
     real(dp), intent(inout) :: fx(n), fy(n), s3(n)
+    real(dp), intent(out) :: r2low
     real(dp), allocatable :: buf(:, :, :)
+    real(dp) :: low(64)
     integer :: nt, t, lo, hi, i
+    real(dp) :: work
     nt = 1
-    !$ nt = min(omp_get_max_threads(), max(1, n/64))
+    ! threads only pay off with enough pairs per step (fork/join costs ~ microseconds)
+    if (mode == mode_all) then
+      work = 0.5_dp*real(n, dp)**2
+    else
+      work = real(start(n + 1) - 1, dp)
+    end if
+    !$ if (work >= 2.0e4_dp) nt = min(omp_get_max_threads(), 64)
+    r2low = huge(1.0_dp)
     if (nt == 1) then
-      call rows(1, n, fx, fy, s3)
+      call rows(1, n, fx, fy, s3, r2low)
       return
     end if
     allocate(buf(n, 3, nt))
@@ -188,8 +206,9 @@ contains
     t = 1
     !$ t = omp_get_thread_num() + 1
     buf(:, :, t) = 0
+    low(t) = huge(1.0_dp)
     call block_of(t, lo, hi)
-    call rows(lo, hi, buf(:, 1, t), buf(:, 2, t), buf(:, 3, t))
+    call rows(lo, hi, buf(:, 1, t), buf(:, 2, t), buf(:, 3, t), low(t))
     !$omp barrier
     !$omp do schedule(static)
     do i = 1, n
@@ -199,15 +218,16 @@ contains
     end do
     !$omp end do
     !$omp end parallel
+    r2low = minval(low(1:nt))
   contains
-    subroutine rows(i_lo, i_hi, ax, ay, a3)
+    subroutine rows(i_lo, i_hi, ax, ay, a3, lw)
       integer, intent(in) :: i_lo, i_hi
-      real(dp), intent(inout) :: ax(n), ay(n), a3(n)
+      real(dp), intent(inout) :: ax(n), ay(n), a3(n), lw
       if (mode == mode_all) then
-        call rows_all(i_lo, i_hi, n, x, y, mu, wsin, k_pair, r2_min, with_r3, ax, ay, a3)
+        call rows_all(i_lo, i_hi, n, x, y, mu, wsin, k_pair, r2_min, with_r3, ax, ay, a3, lw)
       else
         call rows_list(i_lo, i_hi, n, x, y, mu, wsin, k_pair, rc2, shift4, check, with_r3, &
-             start, nbr, ax, ay, a3)
+             start, nbr, ax, ay, a3, lw)
       end if
     end subroutine rows
     !> Rows of thread t: equal shares of the pairs (triangle or list).

@@ -51,6 +51,7 @@ module scene
     real(dp) :: mu_dynamic = 0.45_dp
     real(dp) :: v_threshold = 1.0e-6_dp  !< [D1/T]
     real(dp) :: viscous_gamma = 0.0_dp   !< dimensionless gamma T/m1; 0 = off
+    real(dp) :: min_distance = 0.5_dp    !< guard: stop when two centres come closer [D1]; 0 = off
     ! &integration
     character(len=name_len) :: integrator = 'stormer_verlet'  !< | 'velocity_verlet' | 'euler'
     character(len=name_len) :: neighbour = 'all_pairs'  !< | 'cells' | 'verlet' | 'thesis'
@@ -80,6 +81,7 @@ module scene
     integer :: distance_every = 1000
     integer :: energy_every = 0
     integer :: progress_every = 0        !< 0: about 200 progress lines per run
+    integer :: checkpoint_every = 50000  !< steps between checkpoints; 0 = none
   end type scene_t
 
 contains
@@ -100,7 +102,7 @@ contains
     character(len=name_len) :: placement
     character(len=name_len) :: pair_law, wall_law, dry_friction
     logical :: gravity
-    real(dp) :: mu_static, mu_dynamic, v_threshold, viscous_gamma
+    real(dp) :: mu_static, mu_dynamic, v_threshold, viscous_gamma, min_distance
     character(len=name_len) :: integrator, neighbour, truncation, tail
     real(dp) :: dt, r_cut, skin, target_rel_error
     integer :: tail_every
@@ -109,6 +111,7 @@ contains
     real(dp) :: t_hold, t_final, t_end
     logical :: expand
     integer :: piston_every, frame_every, distance_every, energy_every, progress_every
+    integer :: checkpoint_every
 
     namelist /scene/ kind, title
     namelist /material/ diameter, thickness, density, remanence, gap, gravity_si
@@ -116,13 +119,13 @@ contains
     namelist /particles/ n, seed, speed_init, jitter, fill_height, n_species, &
          species_diameter, mix_ratio, placement
     namelist /physics/ pair_law, wall_law, gravity, dry_friction, mu_static, &
-         mu_dynamic, v_threshold, viscous_gamma
+         mu_dynamic, v_threshold, viscous_gamma, min_distance
     namelist /integration/ integrator, neighbour, dt, r_cut, skin, truncation, tail, &
          tail_every, target_rel_error
     namelist /protocol/ piston, h_start, t_relax, relax_rate, h0, hf, phi_final, &
          piston_speed, t_hold, expand, t_final, t_end
     namelist /output/ piston_every, frame_every, distance_every, energy_every, &
-         progress_every
+         progress_every, checkpoint_every
 
     integer :: u, ios
     character(len=msg_len) :: iom
@@ -138,7 +141,7 @@ contains
     pair_law = sc%pair_law; wall_law = sc%wall_law; gravity = sc%gravity
     dry_friction = sc%dry_friction; mu_static = sc%mu_static
     mu_dynamic = sc%mu_dynamic; v_threshold = sc%v_threshold
-    viscous_gamma = sc%viscous_gamma
+    viscous_gamma = sc%viscous_gamma; min_distance = sc%min_distance
     integrator = sc%integrator; neighbour = sc%neighbour; dt = sc%dt
     r_cut = sc%r_cut; skin = sc%skin; truncation = sc%truncation; tail = sc%tail
     tail_every = sc%tail_every; target_rel_error = sc%target_rel_error
@@ -148,7 +151,7 @@ contains
     t_final = sc%t_final; t_end = sc%t_end
     piston_every = sc%piston_every; frame_every = sc%frame_every
     distance_every = sc%distance_every; energy_every = sc%energy_every
-    progress_every = sc%progress_every
+    progress_every = sc%progress_every; checkpoint_every = sc%checkpoint_every
 
     open(newunit=u, file=path, status='old', action='read', iostat=ios, iomsg=iom)
     if (ios /= 0) then
@@ -190,7 +193,7 @@ contains
     sc%pair_law = pair_law; sc%wall_law = wall_law; sc%gravity = gravity
     sc%dry_friction = dry_friction; sc%mu_static = mu_static
     sc%mu_dynamic = mu_dynamic; sc%v_threshold = v_threshold
-    sc%viscous_gamma = viscous_gamma
+    sc%viscous_gamma = viscous_gamma; sc%min_distance = min_distance
     sc%integrator = integrator; sc%neighbour = neighbour; sc%dt = dt
     sc%r_cut = r_cut; sc%skin = skin; sc%truncation = truncation; sc%tail = tail
     sc%tail_every = tail_every; sc%target_rel_error = target_rel_error
@@ -200,7 +203,7 @@ contains
     sc%t_final = t_final; sc%t_end = t_end
     sc%piston_every = piston_every; sc%frame_every = frame_every
     sc%distance_every = distance_every; sc%energy_every = energy_every
-    sc%progress_every = progress_every
+    sc%progress_every = progress_every; sc%checkpoint_every = checkpoint_every
 
   contains
 
@@ -269,7 +272,7 @@ contains
     call rpos('material', 'diameter', sc%diameter, 1.0e-6_dp, 1.0_dp)
     call rpos('material', 'thickness', sc%thickness, 1.0e-7_dp, 1.0_dp)
     call rpos('material', 'density', sc%density, 1.0_dp, 1.0e5_dp)
-    call rpos('material', 'remanence', sc%remanence, 0.0_dp, 10.0_dp, .true.)
+    call rpos('material', 'remanence', sc%remanence, 0.0_dp, 1.0e3_dp, .true.)
     call rpos('material', 'gap', sc%gap, 1.0e-7_dp, 1.0_dp)
     call rpos('material', 'gravity_si', sc%gravity_si, 1.0e-3_dp, 1.0e3_dp)
     call rpos('cell', 'width', sc%width, 1.0_dp, 1.0e6_dp)
@@ -299,6 +302,7 @@ contains
     call rpos('physics', 'mu_dynamic', sc%mu_dynamic, 0.0_dp, 10.0_dp, .true.)
     call rpos('physics', 'v_threshold', sc%v_threshold, 1.0e-15_dp, 1.0_dp)
     call rpos('physics', 'viscous_gamma', sc%viscous_gamma, 0.0_dp, 1.0e6_dp, .true.)
+    call rpos('physics', 'min_distance', sc%min_distance, 0.0_dp, 1.0_dp, .true.)
     if (trim(sc%dry_friction) /= 'none') then
       dmax = sqrt(sc%diameter**2 + sc%thickness**2)
       if (sc%gap <= sc%thickness .or. sc%gap >= dmax) call bad('material', 'gap', &
@@ -355,6 +359,7 @@ contains
     call ipos('output', 'distance_every', sc%distance_every, 0, huge(1))
     call ipos('output', 'energy_every', sc%energy_every, 0, huge(1))
     call ipos('output', 'progress_every', sc%progress_every, 0, huge(1))
+    call ipos('output', 'checkpoint_every', sc%checkpoint_every, 0, huge(1))
     if (sc%energy_every > 0 .and. trim(sc%wall_law) == 'slab') call bad('output', &
          'energy_every', istr(sc%energy_every), 'must be 0 with wall_law = ''slab'' '// &
          '(the slab law has no closed-form potential)')
@@ -535,6 +540,7 @@ contains
     call pr('mu_dynamic', sc%mu_dynamic, '')
     call pr('v_threshold', sc%v_threshold, 'D1/T')
     call pr('viscous_gamma', sc%viscous_gamma, 'dimensionless gamma*T/m1')
+    call pr('min_distance', sc%min_distance, 'D1, guard (0 = off)')
     write(u, '(a)') '/'
     write(u, '(a)') '&integration'
     call ps('integrator', sc%integrator, '')
@@ -567,6 +573,7 @@ contains
     call pi_('distance_every', sc%distance_every, '')
     call pi_('energy_every', sc%energy_every, '')
     call pi_('progress_every', sc%progress_every, '')
+    call pi_('checkpoint_every', sc%checkpoint_every, '')
     write(u, '(a)') '/'
     close(u)
   contains

@@ -20,7 +20,9 @@ def _parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="cmd", required=True)
 
     r = sub.add_parser("run", help="run a scene (namelist) into a run directory")
-    r.add_argument("scene", type=Path)
+    r.add_argument("scene", type=Path, nargs="?", help="scene namelist (omit with --resume)")
+    r.add_argument("--resume", type=Path, default=None, metavar="RUN_DIR",
+                   help="continue RUN_DIR from its last checkpoint")
     r.add_argument("--out", type=Path, default=None, help="run directory (default runs/out/<scene>)")
     r.add_argument("--set", dest="overrides", action="append", default=[], metavar="GROUP.KEY=VALUE")
     r.add_argument("--door", choices=["exe", "f2py"], default="exe")
@@ -79,7 +81,22 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from pyorch.scene import Scene
 
     from pyorch.bench import apply_target
+    from pyorch.run import resume
 
+    if args.resume is not None:
+        if args.scene is not None or args.overrides:
+            raise SceneError("--resume RUN_DIR continues a run as it was: no scene or --set")
+        result = resume(args.resume, door=args.door, progress=not args.quiet)
+        out = args.resume
+        meta = result.meta
+        print(f"{out}: {meta['status']}, {meta['steps_done']} steps")
+        if not args.no_plots:
+            from pyorch.plots import save_run_plots
+
+            save_run_plots(out)
+        return 0
+    if args.scene is None:
+        raise SceneError("pyorch run: give a scene file (or --resume RUN_DIR)")
     scene = Scene.read(args.scene).with_overrides(args.overrides)
     scene, choice = apply_target(scene)
     if choice:

@@ -5,6 +5,7 @@ Loaders return pandas DataFrames with plain column names; the units are in
 """
 from __future__ import annotations
 
+import io as _io
 import json
 import re
 from pathlib import Path
@@ -37,10 +38,17 @@ def read_header(path: str | Path) -> tuple[list[str], dict[str, str], str]:
 
 
 def read_dat(path: str | Path) -> pd.DataFrame:
-    """Load one .dat file (whitespace separated, '#' header) as a DataFrame."""
+    """Load one .dat file (whitespace separated, '#' header) as a DataFrame.
+
+    A run killed hard (kill -9) may leave a torn last line: it is dropped,
+    as a resume would drop it (the file is cut back to the last checkpoint).
+    """
     path = Path(path)
     names, units, desc = read_header(path)
-    df = pd.read_csv(path, sep=r"\s+", comment="#", header=None, names=names,
+    data = path.read_bytes()
+    end = data.rfind(b"\n")
+    data = data[: end + 1]
+    df = pd.read_csv(_io.BytesIO(data), sep=r"\s+", comment="#", header=None, names=names,
                      engine="c")
     for c in ("step", "id", "species", "phase"):
         if c in df.columns:

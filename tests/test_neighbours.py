@@ -57,7 +57,8 @@ def test_list_never_misses_a_pair_under_adversarial_motion(door, make_scene, api
                       "physics.dry_friction": "none", "material.remanence": 0.05,
                       "particles.speed_init": 3.0, "integration.dt": 2e-3,
                       "cell.width": 60.0, "cell.height": 60.0, "protocol.h_start": 60.0,
-                      "particles.fill_height": 60.0, "particles.n": 400, "physics.wall_law": "infinite"})
+                      "particles.fill_height": 60.0, "particles.n": 400, "physics.wall_law": "infinite",
+                      "physics.min_distance": 0.0})
     d = door(make_scene("demo", ov))
     s = d.state()
     rng = np.random.default_rng(1)

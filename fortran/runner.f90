@@ -1,0 +1,186 @@
+!> Running a scene into a run directory: open the files, step with progress
+!> lines, periodic checkpoints, SIGTERM/SIGINT handling, guards' final
+!> checkpoint, run.json, and resuming from a checkpoint. Both doors (the
+!> executable and the f2py module) go through sim_execute / sim_resume, so
+!> they produce the same files for the same scene.
+module runner
+  use, intrinsic :: iso_fortran_env, only: output_unit
+  use kinds, only: dp, i8
+  use errors, only: status_t, set_error, exit_ok, exit_interrupted
+  use engine, only: sim_t, sim_load, sim_step, pairs_per_step
+  use protocol, only: phase_names
+  use output, only: output_open, output_close, output_flush, output_sizes, output_names, &
+       write_run_json, make_dir
+  use scene, only: scene_write
+  use checkpoint, only: checkpoint_write, checkpoint_read, truncate_file
+  use signals, only: stop_requested, stop_signal
+  implicit none
+  private
+
+  public :: sim_execute, sim_resume
+
+  character(len=*), parameter :: ckpt_name = 'checkpoint.bin'
+  character(len=*), parameter :: ckpt_failed = 'checkpoint_failed.bin'
+
+contains
+
+  !> The whole run: load (nothing written on bad input), open the run
+  !> directory, run until the end (or step stop_at >= 0), finish.
+  subroutine sim_execute(path, dir, progress, stop_at, st)
+    character(len=*), intent(in) :: path, dir
+    logical, intent(in) :: progress
+    integer(i8), intent(in) :: stop_at   !< pause (checkpoint, exit 0) at this step; < 0: never
+    type(status_t), intent(inout) :: st
+    type(sim_t) :: sim
+    call sim_load(sim, path, st)
+    if (st%code /= 0) return
+    sim%progress = progress
+    sim%dir = trim(dir)
+    call make_dir(dir, st)
+    if (st%code /= 0) return
+    call scene_write(trim(dir)//'/scene.nml', sim%sc, st)
+    if (st%code /= 0) return
+    call open_files(sim, .false., st)
+    if (st%code /= 0) return
+    call run_loop(sim, stop_at, st)
+  end subroutine sim_execute
+
+  !> Continue a run directory from its last checkpoint: the output files are
+  !> cut back to their size at the checkpoint and appended to, so the result
+  !> is byte-identical to an uninterrupted run.
+  subroutine sim_resume(dir, progress, stop_at, st)
+    character(len=*), intent(in) :: dir
+    logical, intent(in) :: progress
+    integer(i8), intent(in) :: stop_at
+    type(status_t), intent(inout) :: st
+    type(sim_t) :: sim
+    integer(i8) :: sizes(4)
+    real(dp) :: wall
+    integer :: k
+    logical :: on(4)
+    call sim_load(sim, trim(dir)//'/scene.nml', st)
+    if (st%code /= 0) return
+    sim%progress = progress
+    sim%dir = trim(dir)
+    call checkpoint_read(trim(dir)//'/'//ckpt_name, sim%s, sim%nl, sizes, wall, st)
+    if (st%code /= 0) return
+    sim%wall_before = wall
+    on = [sim%sc%piston_every > 0, sim%sc%frame_every > 0, sim%sc%distance_every > 0, &
+         sim%sc%energy_every > 0]
+    do k = 1, 4
+      if (on(k)) call truncate_file(trim(dir)//'/'//trim(output_names(k)), sizes(k), st)
+    end do
+    if (st%code /= 0) return
+    call open_files(sim, .true., st)
+    if (st%code /= 0) return
+    call run_loop(sim, stop_at, st)
+  end subroutine sim_resume
+
+  subroutine open_files(sim, append, st)
+    type(sim_t), intent(inout) :: sim
+    logical, intent(in) :: append
+    type(status_t), intent(inout) :: st
+    call output_open(sim%o, sim%dir, sim%m, sim%sc%piston_every > 0, sim%sc%frame_every > 0, &
+         sim%sc%distance_every > 0, sim%sc%energy_every > 0, append, st)
+    if (st%code /= 0) return
+    sim%writing = .true.
+    call system_clock(sim%clock0)
+    call run_json(sim, 'running', st)
+  end subroutine open_files
+
+  real(dp) function wall_time(sim)
+    type(sim_t), intent(in) :: sim
+    integer(i8) :: c, rate
+    call system_clock(c, rate)
+    wall_time = sim%wall_before + real(c - sim%clock0, dp)/real(rate, dp)
+  end function wall_time
+
+  subroutine run_json(sim, status, st)
+    type(sim_t), intent(in) :: sim
+    character(len=*), intent(in) :: status
+    type(status_t), intent(inout) :: st
+    call write_run_json(sim%dir, sim%scene_path, status, st%code, trim(st%msg), sim%s%step, &
+         sim%p%n_steps, sim%s%t, wall_time(sim), sim%m, sim%s%n, sim%nl%builds, &
+         pairs_per_step(sim), st)
+  end subroutine run_json
+
+  subroutine save(sim, name, st)
+    type(sim_t), intent(inout) :: sim
+    character(len=*), intent(in) :: name
+    type(status_t), intent(inout) :: st
+    integer(i8) :: sizes(4)
+    call output_sizes(sim%o, sizes)
+    call checkpoint_write(sim%dir//'/'//name, sim%s, sim%nl, sizes, wall_time(sim), st)
+  end subroutine save
+
+  !> Step to the end; checkpoints every checkpoint_every steps; stop cleanly
+  !> on a guard (checkpoint_failed.bin), a signal or stop_at.
+  subroutine run_loop(sim, stop_at, st)
+    type(sim_t), intent(inout) :: sim
+    integer(i8), intent(in) :: stop_at
+    type(status_t), intent(inout) :: st
+    type(status_t) :: aux
+    integer(i8) :: every
+    character(len=200) :: buf
+    every = sim%sc%checkpoint_every
+    do while (sim%s%step < sim%p%n_steps)
+      if (stop_at >= 0 .and. sim%s%step >= stop_at) then
+        call save(sim, ckpt_name, st)
+        write(buf, '(a,i0,a)') 'paused at step ', sim%s%step, ' (resume with --resume)'
+        call finish(sim, trim(buf), st)
+        return
+      end if
+      call sim_step(sim, st)
+      if (st%code /= 0) then
+        call save(sim, ckpt_failed, aux)
+        call finish(sim, 'failed: '//trim(st%msg), st)
+        return
+      end if
+      if (sim%progress .and. mod(sim%s%step, sim%progress_every) == 0) call progress_line(sim)
+      if (every > 0) then
+        if (mod(sim%s%step, every) == 0 .and. sim%s%step < sim%p%n_steps) then
+          call save(sim, ckpt_name, st)
+          if (st%code == 0) call run_json(sim, 'running', st)
+          if (st%code /= 0) exit
+        end if
+      end if
+      if (stop_requested) then
+        call save(sim, ckpt_name, aux)
+        write(buf, '(a,i0,a,i0,a)') 'signal ', stop_signal, ' at step ', &
+             sim%s%step, ' (checkpoint written; resume with --resume)'
+        call set_error(st, exit_interrupted, trim(buf))
+        call finish(sim, 'interrupted: '//trim(buf), st)
+        return
+      end if
+    end do
+    if (st%code == 0) call sim_step(sim, st, final=.true.)
+    if (st%code == 0) then
+      call finish(sim, 'completed', st)
+    else
+      call finish(sim, 'failed: '//trim(st%msg), st)
+    end if
+  end subroutine run_loop
+
+  subroutine progress_line(sim)
+    type(sim_t), intent(in) :: sim
+    write(output_unit, '(a,i0,1x,i0,1x,es12.5,1x,a,1x,es12.5)') 'progress ', sim%s%step, &
+         sim%p%n_steps, sim%s%t, trim(phase_names(sim%s%phase)), sim%s%piston_force
+    flush(output_unit)
+  end subroutine progress_line
+
+  !> Close the files and write the final run.json.
+  subroutine finish(sim, status, st)
+    type(sim_t), intent(inout) :: sim
+    character(len=*), intent(in) :: status
+    type(status_t), intent(inout) :: st
+    type(status_t) :: st2
+    if (.not. sim%writing) return
+    call output_flush(sim%o)
+    call output_close(sim%o)
+    st2 = st
+    call run_json(sim, status, st2)
+    if (st%code == exit_ok .and. st2%code /= exit_ok) st = st2
+    sim%writing = .false.
+  end subroutine finish
+
+end module runner
