@@ -15,7 +15,7 @@ module api
   private
   public :: run_scene, resume_run, load_scene, n_particles, get_state, set_state, compute_forces, &
        advance_steps, piston_state, model_groups, energies, kernel, precision_probe, &
-       set_threads, list_audit
+       set_threads, list_audit, protocol_times
 
 contains
 
@@ -157,6 +157,13 @@ contains
     real(dp), intent(out) :: s5, s3
     call dipole_kernel(dx*dx + dy*dy, 0.0_dp, s5, s3)
   end subroutine kernel
+
+  !> Protocol of the loaded scene: heights [D1] and phase durations [T].
+  subroutine protocol_times(h_start, h0, hf, t_relax, t_comp, t_total)
+    real(dp), intent(out) :: h_start, h0, hf, t_relax, t_comp, t_total
+    h_start = the_sim%p%h_start; h0 = the_sim%p%h0; hf = the_sim%p%hf
+    t_relax = the_sim%p%t_relax; t_comp = the_sim%p%t_comp; t_total = the_sim%p%t_total
+  end subroutine protocol_times
 
   !> Number of OpenMP threads for the force loops (no-op without OpenMP).
   subroutine set_threads(n)

@@ -36,6 +36,38 @@ contains
     end if
   end function species_of
 
+  !> Counts per species summing to n (largest remainder of f_k n).
+  subroutine counts_of(frac, n, cnt)
+    real(dp), intent(in) :: frac(:)
+    integer, intent(in) :: n
+    integer, allocatable, intent(out) :: cnt(:)
+    real(dp), allocatable :: rest(:)
+    integer :: k
+    allocate(cnt(size(frac)), rest(size(frac)))
+    cnt = int(frac*n)
+    rest = frac*n - cnt
+    do while (sum(cnt) < n)
+      k = maxloc(rest, dim=1)
+      cnt(k) = cnt(k) + 1
+      rest(k) = -1
+    end do
+  end subroutine counts_of
+
+  !> r-species interleaving (generalises the thesis' two-species rule): slot k
+  !> gets the species furthest behind its target count f_s k.
+  subroutine interleave(frac, species)
+    real(dp), intent(in) :: frac(:)
+    integer, intent(out) :: species(:)
+    integer :: k, s
+    integer :: got(size(frac))
+    got = 0
+    do k = 1, size(species)
+      s = maxloc(frac*k - got, dim=1)
+      species(k) = s
+      got(s) = got(s) + 1
+    end do
+  end subroutine interleave
+
   subroutine seed_rng(seed)
     integer, intent(in) :: seed
     integer :: k, i
@@ -57,25 +89,42 @@ contains
     type(status_t), intent(inout) :: st
     real(dp) :: wa, ha, sx, sy, u(2), ang, ymax, dmax
     integer :: nc, nr, i, k, j, tmp
-    integer, allocatable :: perm(:)
+    integer, allocatable :: perm(:), cnt(:)
+    real(dp), allocatable :: frac(:)
     character(len=800) :: buf
 
     call state_allocate(s, sc%n)
     call seed_rng(sc%seed)
 
-    ! species
-    if (trim(sc%placement) == 'random' .and. sc%n_species == 2) then
+    ! species: fractions f_k (mix_ratio R for two species)
+    allocate(frac(sc%n_species))
+    if (sc%n_species == 2) then
+      frac = [1 - sc%mix_ratio, sc%mix_ratio]
+    else if (sc%n_species > 2) then
+      frac = sc%species_fraction(1:sc%n_species)
+    else
+      frac = [1.0_dp]
+    end if
+    if (trim(sc%placement) == 'random' .and. sc%n_species > 1) then
+      ! exact counts (largest remainder), then a Fisher-Yates shuffle of the grid slots
+      call counts_of(frac, sc%n, cnt)
+      k = 0
+      do j = 1, sc%n_species
+        s%species(k + 1:k + cnt(j)) = j
+        k = k + cnt(j)
+      end do
       allocate(perm(sc%n))
-      perm = [(i, i = 1, sc%n)]
+      perm = s%species
       do i = sc%n, 2, -1
         call random_number(u(1))
         j = 1 + int(u(1)*i)
         tmp = perm(i); perm(i) = perm(j); perm(j) = tmp
       end do
-      s%species = 1
-      s%species(perm(1:nint(sc%mix_ratio*sc%n))) = 2
+      s%species = perm
     else if (sc%n_species == 2) then
-      s%species = [(species_of(k, sc%mix_ratio), k = 1, sc%n)]
+      s%species = [(species_of(k, sc%mix_ratio), k = 1, sc%n)]   ! thesis rule, §4.2.2
+    else if (sc%n_species > 2) then
+      call interleave(frac, s%species)
     else
       s%species = 1
     end if

@@ -27,7 +27,9 @@ module protocol
 
 contains
 
-  !> hf from phi_final: phi = (pi/4) sum_i D_i^2 / (W hf).
+  !> hf from phi_final: phi = (pi/4) sum_i D_i^2 / (W hf), or from the
+  !> mono-disperse reference height (thesis eq. 4.23 generalised to r species):
+  !> hf = hf_reference sum_k f_k (D_k/D1)^2, with the nominal number fractions f_k.
   subroutine protocol_build(sc, m, area_particles, p)
     type(scene_t), intent(in) :: sc
     type(model_t), intent(in) :: m
@@ -41,6 +43,7 @@ contains
       if (p%h0 < 0) p%h0 = p%h_start
       p%hf = sc%hf
       if (sc%phi_final > 0) p%hf = area_particles/(sc%width*sc%phi_final)
+      if (sc%hf_reference > 0) p%hf = sc%hf_reference*area_factor(sc)
       p%speed = sc%piston_speed
       p%rate = sc%relax_rate
       p%t_relax = sc%t_relax
@@ -56,6 +59,19 @@ contains
     end if
     p%n_steps = max(1_i8, nint(p%t_total/sc%dt, i8))
   end subroutine protocol_build
+
+  !> sum_k f_k (D_k/D1)^2 with the nominal fractions (mix_ratio for 2 species).
+  pure real(dp) function area_factor(sc) result(a)
+    type(scene_t), intent(in) :: sc
+    select case (sc%n_species)
+    case (1)
+      a = 1
+    case (2)
+      a = (1 - sc%mix_ratio) + sc%mix_ratio*sc%species_diameter(2)**2
+    case default
+      a = sum(sc%species_fraction(1:sc%n_species)*sc%species_diameter(1:sc%n_species)**2)
+    end select
+  end function area_factor
 
   !> Piston height [D1] and phase at time t [T].
   pure subroutine piston_at(p, t, h, phase)

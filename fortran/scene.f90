@@ -41,6 +41,7 @@ module scene
     integer :: n_species = 1
     real(dp) :: species_diameter(max_species) = 1.0_dp  !< D_k / D1
     real(dp) :: mix_ratio = 0.0_dp      !< R: fraction of species 2 (bi-disperse)
+    real(dp) :: species_fraction(max_species) = 0.0_dp  !< number fractions (n_species > 2)
     character(len=name_len) :: placement = 'interleave'  !< 'interleave' | 'random'
     ! &physics
     character(len=name_len) :: pair_law = 'dipole'        !< 'dipole' | 'none'
@@ -70,6 +71,7 @@ module scene
     real(dp) :: h0 = -1.0_dp             !< compression start height [D1] (<0: h_start)
     real(dp) :: hf = 14.0_dp             !< maximum-compression height [D1]
     real(dp) :: phi_final = 0.0_dp       !< if > 0: hf from this packing fraction
+    real(dp) :: hf_reference = 0.0_dp    !< if > 0: hf = hf_reference sum_k f_k (D_k/D1)^2 (eq. 4.23)
     real(dp) :: piston_speed = 0.02318_dp  !< [D1/T]
     real(dp) :: t_hold = 0.0_dp          !< rest at hf [T]
     logical :: expand = .true.           !< expand back to h0 after compression
@@ -99,6 +101,7 @@ contains
     real(dp) :: width, height
     integer :: n, seed, n_species
     real(dp) :: speed_init, jitter, fill_height, species_diameter(max_species), mix_ratio
+    real(dp) :: species_fraction(max_species), hf_reference
     character(len=name_len) :: placement
     character(len=name_len) :: pair_law, wall_law, dry_friction
     logical :: gravity
@@ -117,12 +120,12 @@ contains
     namelist /material/ diameter, thickness, density, remanence, gap, gravity_si
     namelist /cell/ width, height
     namelist /particles/ n, seed, speed_init, jitter, fill_height, n_species, &
-         species_diameter, mix_ratio, placement
+         species_diameter, mix_ratio, placement, species_fraction
     namelist /physics/ pair_law, wall_law, gravity, dry_friction, mu_static, &
          mu_dynamic, v_threshold, viscous_gamma, min_distance
     namelist /integration/ integrator, neighbour, dt, r_cut, skin, truncation, tail, &
          tail_every, target_rel_error
-    namelist /protocol/ piston, h_start, t_relax, relax_rate, h0, hf, phi_final, &
+    namelist /protocol/ piston, h_start, t_relax, relax_rate, h0, hf, phi_final, hf_reference, &
          piston_speed, t_hold, expand, t_final, t_end
     namelist /output/ piston_every, frame_every, distance_every, energy_every, &
          progress_every, checkpoint_every
@@ -137,6 +140,7 @@ contains
     n = sc%n; seed = sc%seed; speed_init = sc%speed_init; jitter = sc%jitter
     fill_height = sc%fill_height; n_species = sc%n_species
     species_diameter = sc%species_diameter; mix_ratio = sc%mix_ratio
+    species_fraction = sc%species_fraction; hf_reference = sc%hf_reference
     placement = sc%placement
     pair_law = sc%pair_law; wall_law = sc%wall_law; gravity = sc%gravity
     dry_friction = sc%dry_friction; mu_static = sc%mu_static
@@ -189,6 +193,7 @@ contains
     sc%n = n; sc%seed = seed; sc%speed_init = speed_init; sc%jitter = jitter
     sc%fill_height = fill_height; sc%n_species = n_species
     sc%species_diameter = species_diameter; sc%mix_ratio = mix_ratio
+    sc%species_fraction = species_fraction; sc%hf_reference = hf_reference
     sc%placement = placement
     sc%pair_law = pair_law; sc%wall_law = wall_law; sc%gravity = gravity
     sc%dry_friction = dry_friction; sc%mu_static = mu_static
@@ -249,6 +254,18 @@ contains
     end do
   end subroutine check_groups
 
+  !> Control and non-ASCII bytes shown as '?', so a message is one clean line.
+  pure function printable(s) result(r)
+    character(len=*), intent(in) :: s
+    character(len=len(s)) :: r
+    integer :: i, c
+    r = s
+    do i = 1, len(s)
+      c = iachar(s(i:i))
+      if (c < 32 .or. c > 126) r(i:i) = '?'
+    end do
+  end function printable
+
   pure function lower(s) result(r)
     character(len=*), intent(in) :: s
     character(len=len(s)) :: r
@@ -290,6 +307,14 @@ contains
     call rpos('particles', 'mix_ratio', sc%mix_ratio, 0.0_dp, 1.0_dp, .true.)
     if (sc%n_species == 1 .and. sc%mix_ratio /= 0.0_dp) call bad('particles', 'mix_ratio', &
          rstr(sc%mix_ratio), 'must be 0 when n_species = 1')
+    if (sc%n_species > 2) then
+      do k = 1, sc%n_species
+        call rpos('particles', 'species_fraction', sc%species_fraction(k), 0.0_dp, 1.0_dp, .true.)
+      end do
+      if (abs(sum(sc%species_fraction(1:sc%n_species)) - 1.0_dp) > 1.0e-9_dp) call bad( &
+           'particles', 'species_fraction', rstr(sum(sc%species_fraction(1:sc%n_species))), &
+           'the n_species number fractions must sum to 1')
+    end if
     call choice('particles', 'placement', sc%placement, &
          [character(len=name_len) :: 'interleave', 'random'])
 
@@ -304,10 +329,12 @@ contains
     call rpos('physics', 'viscous_gamma', sc%viscous_gamma, 0.0_dp, 1.0e6_dp, .true.)
     call rpos('physics', 'min_distance', sc%min_distance, 0.0_dp, 1.0_dp, .true.)
     if (trim(sc%dry_friction) /= 'none') then
-      dmax = sqrt(sc%diameter**2 + sc%thickness**2)
+      ! every species must be able to tilt against the glass (eq. 2.10)
+      dmax = sqrt((sc%diameter*minval(sc%species_diameter(1:max(1, min(sc%n_species, &
+           max_species)))))**2 + sc%thickness**2)
       if (sc%gap <= sc%thickness .or. sc%gap >= dmax) call bad('material', 'gap', &
-           rstr(sc%gap), 'with dry friction on, the magnets must be able to tilt: '// &
-           'thickness < gap < sqrt(diameter^2 + thickness^2) = '//rstr(dmax)//' m')
+           rstr(sc%gap), 'with dry friction on, every magnet must be able to tilt: '// &
+           'thickness < gap < sqrt(D_min^2 + thickness^2) = '//rstr(dmax)//' m')
     end if
 
     call choice('integration', 'integrator', sc%integrator, &
@@ -341,9 +368,12 @@ contains
       if (h0 > hs .or. h0 <= 1.0_dp) call bad('protocol', 'h0', rstr(sc%h0), &
            'must be in (1, h_start = '//rstr(hs)//'] D1 (negative: h_start)')
       call rpos('protocol', 'phi_final', sc%phi_final, 0.0_dp, 0.9069_dp, .true.)
+      call rpos('protocol', 'hf_reference', sc%hf_reference, 0.0_dp, h0, .true.)
+      if (sc%phi_final > 0.0_dp .and. sc%hf_reference > 0.0_dp) call bad('protocol', &
+           'hf_reference', rstr(sc%hf_reference), 'give phi_final or hf_reference, not both')
       hf = sc%hf
-      if (sc%phi_final > 0.0_dp) hf = -1.0_dp  ! derived later, checked below
-      if (sc%phi_final <= 0.0_dp .and. (hf >= h0 .or. hf <= 0.0_dp)) call bad('protocol', 'hf', &
+      if (sc%phi_final <= 0.0_dp .and. sc%hf_reference <= 0.0_dp .and. &
+           (hf >= h0 .or. hf <= 0.0_dp)) call bad('protocol', 'hf', &
            rstr(sc%hf), 'must be in (0, h0 = '//rstr(h0)//') D1')
       call rpos('protocol', 'piston_speed', sc%piston_speed, 1.0e-9_dp, 1.0e3_dp)
       call rpos('protocol', 't_hold', sc%t_hold, 0.0_dp, 1.0e9_dp, .true.)
@@ -369,7 +399,7 @@ contains
     subroutine bad(group, key, value, rule)
       character(len=*), intent(in) :: group, key, value, rule
       call set_error(st, exit_bad_input, trim(path)//': &'//group//' '//key//' = '// &
-           trim(value)//': '//rule)
+           printable(trim(value))//': '//rule)
     end subroutine bad
 
     subroutine rpos(group, key, v, lo, hi, lo_closed)
@@ -529,6 +559,10 @@ contains
       write(u, '(2x,a,i0,a,es25.17e3)') 'species_diameter(', k, ') = ', sc%species_diameter(k)
     end do
     call pr('mix_ratio', sc%mix_ratio, 'fraction of species 2')
+    do k = 1, sc%n_species
+      if (sc%n_species > 2) write(u, '(2x,a,i0,a,es25.17e3)') 'species_fraction(', k, ') = ', &
+           sc%species_fraction(k)
+    end do
     call ps('placement', sc%placement, '')
     write(u, '(a)') '/'
     write(u, '(a)') '&physics'
@@ -561,6 +595,7 @@ contains
     call pr('h0', sc%h0, 'D1')
     call pr('hf', sc%hf, 'D1')
     call pr('phi_final', sc%phi_final, '')
+    call pr('hf_reference', sc%hf_reference, 'D1, eq. 4.23 (0 = off)')
     call pr('piston_speed', sc%piston_speed, 'D1/T')
     call pr('t_hold', sc%t_hold, 'T')
     call pl('expand', sc%expand)

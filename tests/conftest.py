@@ -31,7 +31,7 @@ def make_scene(tmp_path: Path) -> Callable[..., Path]:
         if overrides:
             sc = sc.with_overrides(overrides)
         counter["k"] += 1
-        return sc.write(tmp_path / (name or f"{base}_{counter['k']}.nml"))
+        return sc.write(tmp_path / (name or f"{base.replace('/', '_')}_{counter['k']}.nml"))
 
     return _make
 

@@ -1,0 +1,131 @@
+"""Property-based fuzzing (hypothesis): random scene values and mangled
+namelist text. The engine either runs or refuses cleanly: never a crash, a
+hang, a Fortran runtime traceback or NaN in its output."""
+from __future__ import annotations
+
+import json
+import subprocess
+from pathlib import Path
+
+import numpy as np
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from pyorch import io
+from pyorch.run import engine_executable
+from pyorch.scene import Scene
+
+ROOT = Path(__file__).resolve().parents[1]
+BASE = {"particles.n": 20, "cell.width": 10.0, "cell.height": 12.0, "protocol.piston": "fixed",
+        "protocol.h_start": 12.0, "protocol.t_end": 0.1, "output.piston_every": 5,
+        "output.frame_every": 10, "output.distance_every": 10, "output.energy_every": 10,
+        "output.checkpoint_every": 20}
+CRASH_MARKS = ("Fortran runtime error", "Backtrace", "SIGSEGV", "Segmentation", "ERROR STOP",
+               "Program received signal")
+
+FLOAT_KEYS = ["material.diameter", "material.thickness", "material.density", "material.remanence",
+              "material.gap", "material.gravity_si", "cell.width", "cell.height",
+              "particles.speed_init", "particles.jitter", "particles.fill_height",
+              "particles.mix_ratio", "physics.mu_static", "physics.mu_dynamic",
+              "physics.v_threshold", "physics.viscous_gamma", "physics.min_distance",
+              "integration.dt", "integration.r_cut", "integration.skin",
+              "protocol.h_start", "protocol.t_end", "protocol.hf", "protocol.phi_final"]
+INT_KEYS = ["particles.n", "particles.seed", "particles.n_species", "output.piston_every",
+            "output.frame_every", "output.checkpoint_every", "integration.tail_every"]
+CHOICE_KEYS = {"physics.pair_law": ["dipole", "none"],
+               "physics.wall_law": ["experimental", "infinite", "slab", "none"],
+               "physics.dry_friction": ["none", "first_order", "second_order"],
+               "integration.integrator": ["stormer_verlet", "velocity_verlet", "euler"],
+               "integration.neighbour": ["all_pairs", "cells", "verlet", "thesis"],
+               "integration.truncation": ["plain", "shifted_force"],
+               "integration.tail": ["none", "frozen"],
+               "protocol.piston": ["prescribed", "fixed", "none"]}
+
+floats = st.one_of(st.floats(allow_nan=True, allow_infinity=True),
+                   st.sampled_from([0.0, -1.0, 1e-300, 1e300, 0.5, 2.0, 1e-3, 50.0]),
+                   st.floats(min_value=-10, max_value=100))
+ints = st.one_of(st.integers(-5, 200), st.sampled_from([0, -1, 2**31 - 1, 10**12]))
+choice_values = st.one_of(st.sampled_from(sorted({v for vs in CHOICE_KEYS.values() for v in vs})),
+                          st.text(max_size=12))
+
+
+@st.composite
+def overrides(draw) -> dict:
+    out = {}
+    for key in draw(st.lists(st.sampled_from(FLOAT_KEYS), max_size=4, unique=True)):
+        out[key] = draw(floats)
+    for key in draw(st.lists(st.sampled_from(INT_KEYS), max_size=2, unique=True)):
+        out[key] = draw(ints)
+    for key in draw(st.lists(st.sampled_from(sorted(CHOICE_KEYS)), max_size=3, unique=True)):
+        out[key] = draw(choice_values)
+    return out
+
+
+def check_outcome(proc: subprocess.CompletedProcess, out: Path) -> None:
+    for mark in CRASH_MARKS:
+        assert mark not in proc.stderr, proc.stderr
+    assert proc.returncode in (0, 2, 3), (proc.returncode, proc.stderr)
+    if proc.returncode == 2:
+        assert not out.exists(), "a refused scene must not create its run directory"
+        assert len(proc.stderr.strip().splitlines()) == 1 and "magbed: error:" in proc.stderr
+        return
+    meta = json.loads((out / "run.json").read_text())
+    assert meta["exit_code"] == proc.returncode
+    for name in ("piston.dat", "particles.dat", "mean_distance.dat", "energy.dat"):
+        if (out / name).is_file():
+            df = io.read_dat(out / name)
+            assert np.isfinite(df.select_dtypes("number").to_numpy()).all(), name
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(ov=overrides())
+def test_random_scene_values_run_or_refuse_cleanly(tmp_path_factory, ov):
+    tmp = tmp_path_factory.mktemp("fuzz")
+    scene = Scene.read(ROOT / "runs/demo.nml").with_overrides(dict(BASE, **ov))
+    path = scene.write(tmp / "s.nml")
+    out = tmp / "out"
+    proc = subprocess.run([str(engine_executable()), str(path), "--out", str(out), "--quiet"],
+                          capture_output=True, text=True, errors="replace", timeout=60)
+    check_outcome(proc, out)
+
+
+CHARS = st.sampled_from(list("&/=,!'\"*()0123456789.eE+-_ \nabcdnxyz$%\t;:"))
+
+
+@st.composite
+def mangled(draw) -> str:
+    text = (ROOT / "runs/demo.nml").read_text()
+    for _ in range(draw(st.integers(1, 4))):
+        op = draw(st.sampled_from(["delete", "insert", "duplicate", "swap", "truncate"]))
+        n = len(text)
+        i = draw(st.integers(0, max(n - 1, 0)))
+        if op == "delete":
+            text = text[:i] + text[i + draw(st.integers(1, 40)):]
+        elif op == "insert":
+            text = text[:i] + "".join(draw(st.lists(CHARS, min_size=1, max_size=12))) + text[i:]
+        elif op == "duplicate":
+            j = min(n, i + draw(st.integers(1, 80)))
+            text = text[:j] + text[i:j] + text[j:]
+        elif op == "swap" and text:
+            lines = text.splitlines(keepends=True)
+            a, b = draw(st.integers(0, len(lines) - 1)), draw(st.integers(0, len(lines) - 1))
+            lines[a], lines[b] = lines[b], lines[a]
+            text = "".join(lines)
+        elif op == "truncate":
+            text = text[:i]
+    return text
+
+
+@settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(text=mangled())
+def test_mangled_namelist_text_is_refused_cleanly(tmp_path_factory, text):
+    tmp = tmp_path_factory.mktemp("mangled")
+    path = tmp / "m.nml"
+    path.write_text(text)
+    proc = subprocess.run([str(engine_executable()), str(path), "--check"], capture_output=True,
+                          text=True, errors="replace", timeout=30)
+    for mark in CRASH_MARKS:
+        assert mark not in proc.stderr, proc.stderr
+    assert proc.returncode in (0, 2), (proc.returncode, proc.stderr)
+    if proc.returncode == 2:
+        assert str(path) in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
