@@ -5,7 +5,8 @@ module api
   use errors, only: status_t
   use api_state, only: the_sim
   use kinds, only: i8
-  use engine, only: sim_t, sim_load, sim_forces, sim_step, sim_energy
+  use engine, only: sim_t, sim_load, sim_forces, sim_step, sim_energy, piston_energy
+  use model, only: piston_free
   use runner, only: sim_execute, sim_resume
   use protocol, only: piston_at
   use pair_forces, only: dipole_kernel
@@ -15,7 +16,7 @@ module api
   private
   public :: run_scene, resume_run, load_scene, n_particles, get_state, set_state, compute_forces, &
        advance_steps, piston_state, model_groups, energies, kernel, precision_probe, &
-       set_threads, list_audit, protocol_times
+       set_threads, list_audit, protocol_times, set_piston
 
 contains
 
@@ -104,6 +105,7 @@ contains
     character(len=1024), intent(out) :: message
     type(status_t) :: st
     call piston_at(the_sim%p, the_sim%s%t, the_sim%s%piston_h, the_sim%s%phase)
+    if (the_sim%m%piston_mode == piston_free) the_sim%s%piston_h = the_sim%pst%y(1)
     if (the_sim%need_velocity) call estimate_velocity(the_sim%m%integrator, the_sim%m%dt, &
          the_sim%s)
     call sim_forces(the_sim, .false., st)
@@ -145,11 +147,31 @@ contains
     force_n = the_sim%m%force_unit
   end subroutine model_groups
 
-  !> Kinetic, pair, wall and gravitational energy [m1 g D1] of the current state.
-  subroutine energies(ek, ep, ew, eg)
-    real(dp), intent(out) :: ek, ep, ew, eg
+  !> Kinetic, pair, wall, gravitational energy of the particles and the free
+  !> piston's kinetic + gravitational energy [m1 g D1] of the current state.
+  subroutine energies(ek, ep, ew, eg, epis)
+    real(dp), intent(out) :: ek, ep, ew, eg, epis
     call sim_energy(the_sim, ek, ep, ew, eg)
+    epis = piston_energy(the_sim)
   end subroutine energies
+
+  !> Free piston: place it at height h [D1] with velocity v [D1/T].
+  subroutine set_piston(h, v, code, message)
+    real(dp), intent(in) :: h, v
+    integer, intent(out) :: code
+    character(len=1024), intent(out) :: message
+    code = 0
+    message = ''
+    if (the_sim%m%piston_mode /= piston_free) then
+      code = 2
+      message = 'set_piston: the scene has no free piston (&protocol piston = ''free'')'
+      return
+    end if
+    the_sim%pst%y = h
+    the_sim%pst%vy = v
+    the_sim%pst%has_previous = .false.
+    the_sim%s%piston_h = h
+  end subroutine set_piston
 
   !> The pair kernel itself: r^-5 and r^-3 for a separation (dx, dy).
   subroutine kernel(dx, dy, s5, s3)

@@ -14,7 +14,7 @@ module checkpoint
   public :: checkpoint_write, checkpoint_read, truncate_file
 
   integer, parameter :: magic = 20261122   !< format tag
-  integer, parameter :: version = 1
+  integer, parameter :: version = 2
 
   interface
     integer(c_int) function c_rename(old, new) bind(C, name='rename')
@@ -30,9 +30,10 @@ module checkpoint
 
 contains
 
-  subroutine checkpoint_write(path, s, nl, sizes, wall, st)
+  subroutine checkpoint_write(path, s, nl, sizes, wall, pst, st)
     character(len=*), intent(in) :: path
     type(state_t), intent(in) :: s
+    type(state_t), intent(in) :: pst      !< free piston (unallocated otherwise)
     type(nlist_t), intent(in) :: nl
     integer(i8), intent(in) :: sizes(4)   !< bytes of piston, particles, distance, energy files
     real(dp), intent(in) :: wall          !< wall time so far [s]
@@ -60,21 +61,24 @@ contains
       write(u) size(nl%cell_start), size(nl%nbr)
       write(u) nl%cell_start, nl%cell_part, nl%start, nl%nbr, nl%xref, nl%yref
     end if
+    write(u) allocated(pst%y)
+    if (allocated(pst%y)) write(u) pst%y, pst%yp, pst%vy, pst%fy, pst%has_previous
     close(u)
     if (c_rename(tmp//c_null_char, trim(path)//c_null_char) /= 0) &
          call set_error(st, exit_io, trim(path)//': cannot rename checkpoint into place')
   end subroutine checkpoint_write
 
-  subroutine checkpoint_read(path, s, nl, sizes, wall, st)
+  subroutine checkpoint_read(path, s, nl, sizes, wall, pst, st)
     character(len=*), intent(in) :: path
     type(state_t), intent(inout) :: s      !< allocated for the scene's n
+    type(state_t), intent(inout) :: pst    !< free piston, allocated when the scene has one
     type(nlist_t), intent(inout) :: nl     !< set up for the scene's strategy
     integer(i8), intent(out) :: sizes(4)
     real(dp), intent(out) :: wall
     type(status_t), intent(inout) :: st
     integer :: u, ios, mg, ver, n, k, ncs, nnb
     integer, allocatable :: rng(:)
-    logical :: has_list
+    logical :: has_list, has_piston
     open(newunit=u, file=path, access='stream', form='unformatted', status='old', &
          action='read', iostat=ios)
     if (ios /= 0) then
@@ -111,6 +115,10 @@ contains
         read(u, iostat=ios) nl%cell_start, nl%cell_part, nl%start, nl%nbr, nl%xref, nl%yref
       end if
     end if
+    if (ios == 0) read(u, iostat=ios) has_piston
+    if (ios == 0 .and. has_piston .neqv. allocated(pst%y)) ios = 1
+    if (ios == 0 .and. has_piston) read(u, iostat=ios) pst%y, pst%yp, pst%vy, pst%fy, &
+         pst%has_previous
     close(u)
     if (ios /= 0) call set_error(st, exit_io, trim(path)//': checkpoint is truncated or '// &
          'does not match the scene')

@@ -5,8 +5,8 @@ module engine
   use kinds, only: dp, i8, pi
   use errors, only: status_t, set_error, exit_numerical, exit_ok, exit_bad_input
   use scene, only: scene_t, scene_read, scene_validate, scene_write
-  use model, only: model_t, model_build, law_dipole, piston_none, piston_prescribed
-  use state, only: state_t
+  use model, only: model_t, model_build, law_dipole, piston_none, piston_prescribed, piston_free
+  use state, only: state_t, state_allocate
   use protocol, only: protocol_t, protocol_build, piston_at, phase_names
   use initial, only: place_particles
   use pair_forces, only: pair_forces_all, pair_forces_list, pair_forces_far, pair_energy_all
@@ -21,7 +21,7 @@ module engine
   implicit none
   private
 
-  public :: sim_t, sim_load, sim_forces, sim_step, sim_energy, pairs_per_step
+  public :: sim_t, sim_load, sim_forces, sim_step, sim_energy, pairs_per_step, piston_energy
 
   type :: sim_t
     type(scene_t) :: sc
@@ -30,6 +30,7 @@ module engine
     type(protocol_t) :: p
     type(output_t) :: o
     type(nlist_t) :: nl
+    type(state_t) :: pst                !< free piston as a one-body state (y = height)
     character(len=:), allocatable :: scene_path
     logical :: writing = .false.        !< a run directory is open
     logical :: progress = .false.       !< print progress lines on stdout
@@ -83,6 +84,14 @@ contains
       return
     end if
     sim%need_velocity = sim%m%dry_order > 0 .or. sim%m%viscous_on
+    if (sim%m%piston_mode == piston_free) then
+      call state_allocate(sim%pst, 1)
+      sim%pst%x = 0
+      sim%pst%y = sim%p%h_start
+      sim%pst%mass = sim%m%piston_mass
+      sim%pst%vx = 0
+      sim%pst%vy = 0
+    end if
     if (sim%m%neighbour /= nb_all_pairs) call nlist_setup(sim%nl, sim%m%neighbour, &
          sim%m%r_cut, sim%m%skin, sim%m%width, sim%m%height, sim%s%n)
     sim%s%step = 0
@@ -130,6 +139,14 @@ contains
           call set_error(st, exit_numerical, trim(buf))
           return
         end if
+      end if
+      if (m%piston_mode == piston_free .and. .not. (s%piston_h > 0 .and. &
+           s%piston_h <= m%height)) then
+        write(buf, '(a,i0,a,es12.5,a,es12.5,a)') 'step ', s%step, ' t = ', s%t, &
+             ' T: the free piston left the cell (H = ', s%piston_h, &
+             ' D1): too heavy or too fast for the bed; lower piston_mass or dt'
+        call set_error(st, exit_numerical, trim(buf))
+        return
       end if
       call wall_forces(s%n, s%x, s%y, s%mu, m%wall_law, m%k_wall, m%width, m%height, &
            s%piston_h, m%piston_mode /= piston_none, s%fx, s%fy, s%piston_force, bad)
@@ -193,6 +210,39 @@ contains
     end associate
   end subroutine pair_pass
 
+  !> Free piston at the start of a step: held during the relaxation, nudged
+  !> (lifted and stopped) at the start of the recorded phase, otherwise a body
+  !> integrated with the particles' integrator. Sets the wall height.
+  subroutine free_piston_begin(sim, moving)
+    type(sim_t), intent(inout) :: sim
+    logical, intent(out) :: moving
+    associate (pst => sim%pst, s => sim%s)
+      if (s%phase == 1) then
+        pst%y = sim%p%h_start
+        pst%vy = 0
+        pst%has_previous = .false.
+      end if
+      if (s%step == sim%p%nudge_step) then
+        pst%y = pst%y + sim%p%nudge
+        pst%vy = 0
+        pst%has_previous = .false.
+      end if
+      moving = s%phase /= 1
+      if (moving .and. sim%m%piston_gamma > 0) call estimate_velocity(sim%m%integrator, &
+           sim%m%dt, pst)
+      s%piston_h = pst%y(1)
+    end associate
+  end subroutine free_piston_begin
+
+  !> Kinetic + gravitational energy of a free piston [m1 g D1] (0 otherwise).
+  real(dp) function piston_energy(sim) result(e)
+    type(sim_t), intent(in) :: sim
+    e = 0
+    if (sim%m%piston_mode /= piston_free) return
+    e = 0.5_dp*sim%m%piston_mass*sim%pst%vy(1)**2
+    if (sim%m%gravity_on) e = e + sim%m%big_g*sim%m%piston_mass*sim%pst%y(1)
+  end function piston_energy
+
   !> Pairs the kernel evaluates per step (current list, or all pairs).
   integer(i8) function pairs_per_step(sim)
     type(sim_t), intent(in) :: sim
@@ -231,13 +281,15 @@ contains
     type(sim_t), intent(inout) :: sim
     type(status_t), intent(inout) :: st
     logical, intent(in), optional :: final
-    logical :: last, o_pis, o_frm, o_dst, o_en
+    logical :: last, o_pis, o_frm, o_dst, o_en, moving
     real(dp) :: ek, ep, ew, eg
     last = .false.
     if (present(final)) last = final
     associate (s => sim%s, m => sim%m)
       s%t = real(s%step, dp)*m%dt
       call piston_at(sim%p, s%t, s%piston_h, s%phase)
+      moving = .false.
+      if (m%piston_mode == piston_free) call free_piston_begin(sim, moving)
       o_pis = sim%writing .and. due(sim%sc%piston_every, s%step, last)
       o_frm = sim%writing .and. due(sim%sc%frame_every, s%step, last)
       o_dst = sim%writing .and. due(sim%sc%distance_every, s%step, last)
@@ -245,16 +297,25 @@ contains
       if (sim%need_velocity) call estimate_velocity(m%integrator, m%dt, s)
       call sim_forces(sim, o_frm, st)
       if (st%code /= 0) return
-      if (o_frm .or. o_en .or. last) call finish_velocity(m%integrator, m%dt, s)
+      if (moving) then   ! Newton's third law: the particles' push, weight, drag
+        sim%pst%fx = 0
+        sim%pst%fy = s%piston_force - m%big_g*m%piston_mass*merge(1, 0, m%gravity_on) &
+             - m%piston_gamma*m%piston_mass*sim%pst%vy
+      end if
+      if (o_frm .or. o_en .or. last) then
+        call finish_velocity(m%integrator, m%dt, s)
+        if (moving) call finish_velocity(m%integrator, m%dt, sim%pst)
+      end if
       if (o_pis) call write_piston(sim%o, s, packing_fraction(sim%area, m%width, s%piston_h))
       if (o_frm) call write_frame(sim%o, s)
       if (o_dst) call write_distance(sim%o, s, mean_distance(s%n, s%x, s%y))
       if (o_en) then
         call sim_energy(sim, ek, ep, ew, eg)
-        call write_energy(sim%o, s, ek, ep, ew, eg)
+        call write_energy(sim%o, s, ek, ep, ew, eg, piston_energy(sim))
       end if
       if (last) return
       call advance(m%integrator, m%dt, s)
+      if (moving) call advance(m%integrator, m%dt, sim%pst)
       s%step = s%step + 1
       s%t = real(s%step, dp)*m%dt
     end associate

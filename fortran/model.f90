@@ -19,12 +19,12 @@ module model
   public :: model_t, model_build
   public :: law_none, law_dipole, wall_experimental, wall_infinite, wall_slab
   public :: int_stormer_verlet, int_velocity_verlet, int_euler
-  public :: piston_prescribed, piston_fixed, piston_none
+  public :: piston_prescribed, piston_fixed, piston_none, piston_free
 
   integer, parameter :: law_none = 0, law_dipole = 1
   integer, parameter :: wall_experimental = 1, wall_infinite = 2, wall_slab = 3
   integer, parameter :: int_stormer_verlet = 1, int_velocity_verlet = 2, int_euler = 3
-  integer, parameter :: piston_prescribed = 1, piston_fixed = 2, piston_none = 0
+  integer, parameter :: piston_prescribed = 1, piston_fixed = 2, piston_none = 0, piston_free = 3
 
   type :: model_t
     ! unit scales (SI)
@@ -43,6 +43,7 @@ module model
     integer :: wall_law = wall_experimental   !< 0 = none
     integer :: integrator = int_stormer_verlet
     integer :: piston_mode = piston_prescribed
+    real(dp) :: piston_mass = 0, piston_gamma = 0   !< free piston [m1], [1/T]
     integer :: dry_order = 1                  !< 0 none, 1 first, 2 second order torque
     logical :: gravity_on = .true.
     logical :: viscous_on = .false.
@@ -100,6 +101,7 @@ contains
     select case (trim(sc%piston))
     case ('fixed'); m%piston_mode = piston_fixed
     case ('none');  m%piston_mode = piston_none
+    case ('free');  m%piston_mode = piston_free
     case default;   m%piston_mode = piston_prescribed
     end select
     select case (trim(sc%dry_friction))
@@ -107,6 +109,8 @@ contains
     case ('second_order'); m%dry_order = 2
     case default;          m%dry_order = 0
     end select
+    m%piston_mass = sc%piston_mass
+    m%piston_gamma = sc%piston_gamma
     m%gravity_on = sc%gravity
     m%gamma = sc%viscous_gamma
     m%viscous_on = sc%viscous_gamma > 0.0_dp

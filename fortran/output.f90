@@ -73,7 +73,8 @@ contains
          '# step t[T] D_hat[D1]')
     if (energy_on) call open1(o%u_energy, 'energy.dat', &
          '# energy.dat: mechanical energy (gravity potential from y = 0). '//trim(units), &
-         '# step t[T] E_kin[m1*g*D1] E_pair[m1*g*D1] E_wall[m1*g*D1] E_grav[m1*g*D1] E_total[m1*g*D1]')
+         '# step t[T] E_kin[m1*g*D1] E_pair[m1*g*D1] E_wall[m1*g*D1] E_grav[m1*g*D1] '// &
+         'E_piston[m1*g*D1] E_total[m1*g*D1]')
   contains
     subroutine open1(u, name, head1, head2)
       integer, intent(out) :: u
@@ -153,11 +154,12 @@ contains
     write(o%u_dist, '(i0,2(1x,'//rfmt//'))') s%step, s%t, d
   end subroutine write_distance
 
-  subroutine write_energy(o, s, ek, ep, ew, eg)
+  subroutine write_energy(o, s, ek, ep, ew, eg, epis)
     type(output_t), intent(in) :: o
     type(state_t), intent(in) :: s
-    real(dp), intent(in) :: ek, ep, ew, eg
-    write(o%u_energy, '(i0,6(1x,'//rfmt//'))') s%step, s%t, ek, ep, ew, eg, ek + ep + ew + eg
+    real(dp), intent(in) :: ek, ep, ew, eg, epis   !< epis: free piston kinetic + gravity
+    write(o%u_energy, '(i0,7(1x,'//rfmt//'))') s%step, s%t, ek, ep, ew, eg, epis, &
+         ek + ep + ew + eg + epis
   end subroutine write_energy
 
   !> run.json, replaced atomically.

@@ -5,22 +5,27 @@
 !>         2 constant-speed compression h0 -> hf, 3 hold at hf,
 !>         4 expansion hf -> h0, 5 final relaxation at h0.
 !> Piston 'fixed' stays at h_start (phase 0); 'none' has no piston (phase 0).
+!> Piston 'free' (thesis §5.3): held at h_start while the bed relaxes (phase 1),
+!> released to fall on the bed (phase 6) for t_settle, nudged up by `nudge`
+!> and released again (phase 7) for t_record; its height is then state.
 module protocol
   use kinds, only: dp, i8
   use scene, only: scene_t
-  use model, only: model_t, piston_prescribed, piston_none
+  use model, only: model_t, piston_prescribed, piston_none, piston_free
   implicit none
   private
 
   public :: protocol_t, protocol_build, piston_at, phase_names
 
-  character(len=*), parameter :: phase_names(0:5) = [character(len=8) :: &
-       'steady', 'relax', 'compress', 'hold', 'expand', 'final']
+  character(len=*), parameter :: phase_names(0:7) = [character(len=8) :: &
+       'steady', 'relax', 'compress', 'hold', 'expand', 'final', 'fall', 'free']
 
   type :: protocol_t
     integer :: mode = piston_prescribed
     real(dp) :: h_start = 0, h0 = 0, hf = 0, speed = 0, rate = 5
     real(dp) :: t_relax = 0, t_comp = 0, t_hold = 0, t_exp = 0, t_final = 0
+    real(dp) :: t_settle = 0, t_record = 0, nudge = 0   !< free piston
+    integer(i8) :: nudge_step = -1   !< free piston: the step at which the nudge is applied
     real(dp) :: t_total = 0          !< [T]
     integer(i8) :: n_steps = 0       !< steps to run
   end type protocol_t
@@ -53,6 +58,14 @@ contains
       if (sc%expand) p%t_exp = p%t_comp
       p%t_final = sc%t_final
       p%t_total = p%t_relax + p%t_comp + p%t_hold + p%t_exp + p%t_final
+    else if (m%piston_mode == piston_free) then
+      p%h0 = p%h_start; p%hf = p%h_start
+      p%t_relax = sc%t_relax
+      p%t_settle = sc%t_settle
+      p%t_record = sc%t_record
+      p%nudge = sc%nudge
+      p%t_total = p%t_relax + p%t_settle + p%t_record
+      p%nudge_step = nint((p%t_relax + p%t_settle)/sc%dt, i8)
     else
       p%h0 = p%h_start; p%hf = p%h_start
       p%t_total = sc%t_end
@@ -80,6 +93,13 @@ contains
     real(dp), intent(out) :: h
     integer, intent(out) :: phase
     real(dp) :: s
+    if (p%mode == piston_free) then
+      h = p%h_start                  ! only meaningful while held (phase 1)
+      phase = 1
+      if (t >= p%t_relax) phase = 6
+      if (t >= p%t_relax + p%t_settle) phase = 7
+      return
+    end if
     if (p%mode /= piston_prescribed) then
       h = p%h_start
       if (p%mode == piston_none) h = huge(1.0_dp)

@@ -62,7 +62,7 @@ contains
     if (st%code /= 0) return
     sim%progress = progress
     sim%dir = trim(dir)
-    call checkpoint_read(trim(dir)//'/'//ckpt_name, sim%s, sim%nl, sizes, wall, st)
+    call checkpoint_read(trim(dir)//'/'//ckpt_name, sim%s, sim%nl, sizes, wall, sim%pst, st)
     if (st%code /= 0) return
     sim%wall_before = wall
     on = [sim%sc%piston_every > 0, sim%sc%frame_every > 0, sim%sc%distance_every > 0, &
@@ -110,7 +110,7 @@ contains
     type(status_t), intent(inout) :: st
     integer(i8) :: sizes(4)
     call output_sizes(sim%o, sizes)
-    call checkpoint_write(sim%dir//'/'//name, sim%s, sim%nl, sizes, wall_time(sim), st)
+    call checkpoint_write(sim%dir//'/'//name, sim%s, sim%nl, sizes, wall_time(sim), sim%pst, st)
   end subroutine save
 
   !> Step to the end; checkpoints every checkpoint_every steps; stop cleanly

@@ -77,6 +77,11 @@ module scene
     logical :: expand = .true.           !< expand back to h0 after compression
     real(dp) :: t_final = 0.0_dp         !< final relaxation at h0 [T]
     real(dp) :: t_end = -1.0_dp          !< total time for piston = fixed|none [T]
+    real(dp) :: piston_mass = 100.0_dp   !< free piston: mass [m1]
+    real(dp) :: piston_gamma = 0.0_dp    !< free piston: viscous friction, force -gamma M v
+    real(dp) :: t_settle = 50.0_dp       !< free piston: first fall, until at rest [T]
+    real(dp) :: nudge = 0.2_dp           !< free piston: lift after settling [D1]
+    real(dp) :: t_record = 20.0_dp       !< free piston: recorded free motion after the nudge [T]
     ! &output (cadences in steps; 0 switches a file off)
     integer :: piston_every = 100
     integer :: frame_every = 0
@@ -111,7 +116,7 @@ contains
     integer :: tail_every
     character(len=name_len) :: piston
     real(dp) :: h_start, t_relax, relax_rate, h0, hf, phi_final, piston_speed
-    real(dp) :: t_hold, t_final, t_end
+    real(dp) :: t_hold, t_final, t_end, piston_mass, piston_gamma, t_settle, nudge, t_record
     logical :: expand
     integer :: piston_every, frame_every, distance_every, energy_every, progress_every
     integer :: checkpoint_every
@@ -126,7 +131,8 @@ contains
     namelist /integration/ integrator, neighbour, dt, r_cut, skin, truncation, tail, &
          tail_every, target_rel_error
     namelist /protocol/ piston, h_start, t_relax, relax_rate, h0, hf, phi_final, hf_reference, &
-         piston_speed, t_hold, expand, t_final, t_end
+         piston_speed, t_hold, expand, t_final, t_end, piston_mass, piston_gamma, t_settle, &
+         nudge, t_record
     namelist /output/ piston_every, frame_every, distance_every, energy_every, &
          progress_every, checkpoint_every
 
@@ -153,6 +159,8 @@ contains
     relax_rate = sc%relax_rate; h0 = sc%h0; hf = sc%hf; phi_final = sc%phi_final
     piston_speed = sc%piston_speed; t_hold = sc%t_hold; expand = sc%expand
     t_final = sc%t_final; t_end = sc%t_end
+    piston_mass = sc%piston_mass; piston_gamma = sc%piston_gamma; t_settle = sc%t_settle
+    nudge = sc%nudge; t_record = sc%t_record
     piston_every = sc%piston_every; frame_every = sc%frame_every
     distance_every = sc%distance_every; energy_every = sc%energy_every
     progress_every = sc%progress_every; checkpoint_every = sc%checkpoint_every
@@ -206,6 +214,8 @@ contains
     sc%relax_rate = relax_rate; sc%h0 = h0; sc%hf = hf; sc%phi_final = phi_final
     sc%piston_speed = piston_speed; sc%t_hold = t_hold; sc%expand = expand
     sc%t_final = t_final; sc%t_end = t_end
+    sc%piston_mass = piston_mass; sc%piston_gamma = piston_gamma; sc%t_settle = t_settle
+    sc%nudge = nudge; sc%t_record = t_record
     sc%piston_every = piston_every; sc%frame_every = frame_every
     sc%distance_every = distance_every; sc%energy_every = energy_every
     sc%progress_every = progress_every; sc%checkpoint_every = checkpoint_every
@@ -354,7 +364,7 @@ contains
     end if
 
     call choice('protocol', 'piston', sc%piston, &
-         [character(len=name_len) :: 'prescribed', 'fixed', 'none'])
+         [character(len=name_len) :: 'prescribed', 'fixed', 'none', 'free'])
     if (st%code /= 0) return
     hs = sc%h_start
     if (hs < 0.0_dp) hs = sc%height
@@ -378,6 +388,13 @@ contains
       call rpos('protocol', 'piston_speed', sc%piston_speed, 1.0e-9_dp, 1.0e3_dp)
       call rpos('protocol', 't_hold', sc%t_hold, 0.0_dp, 1.0e9_dp, .true.)
       call rpos('protocol', 't_final', sc%t_final, 0.0_dp, 1.0e9_dp, .true.)
+    else if (trim(sc%piston) == 'free') then
+      call rpos('protocol', 'piston_mass', sc%piston_mass, 0.0_dp, 1.0e9_dp)
+      call rpos('protocol', 'piston_gamma', sc%piston_gamma, 0.0_dp, 1.0e6_dp, .true.)
+      call rpos('protocol', 't_relax', sc%t_relax, 0.0_dp, 1.0e9_dp, .true.)
+      call rpos('protocol', 't_settle', sc%t_settle, 0.0_dp, 1.0e9_dp, .true.)
+      call rpos('protocol', 'nudge', sc%nudge, 0.0_dp, 1.0e3_dp, .true.)
+      call rpos('protocol', 't_record', sc%t_record, 0.0_dp, 1.0e9_dp)
     else
       call rpos('protocol', 't_end', sc%t_end, 1.0e-12_dp, 1.0e9_dp)
     end if
@@ -601,6 +618,11 @@ contains
     call pl('expand', sc%expand)
     call pr('t_final', sc%t_final, 'T')
     call pr('t_end', sc%t_end, 'T')
+    call pr('piston_mass', sc%piston_mass, 'm1 (free piston)')
+    call pr('piston_gamma', sc%piston_gamma, 'free piston viscous friction')
+    call pr('t_settle', sc%t_settle, 'T (free piston)')
+    call pr('nudge', sc%nudge, 'D1 (free piston)')
+    call pr('t_record', sc%t_record, 'T (free piston)')
     write(u, '(a)') '/'
     write(u, '(a)') '&output ! cadences in steps, 0 = off'
     call pi_('piston_every', sc%piston_every, '')

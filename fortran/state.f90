@@ -25,6 +25,9 @@ module state
     real(dp) :: t = 0                      !< time of the current step [T]
     real(dp) :: piston_h = 0               !< piston height at the current step [D1]
     real(dp) :: piston_force = 0           !< force of the particles on the piston [m1 g]
+    real(dp) :: piston_hp = 0              !< free piston: height at step n-1 (SV) or v_{n-1/2} (VV)
+    real(dp) :: piston_v = 0               !< free piston: velocity at the current step [D1/T]
+    real(dp) :: piston_f = 0               !< free piston: total force on it [m1 g]
     integer :: phase = 0                   !< protocol phase of the current step
     logical :: has_previous = .false.      !< xp, yp valid
     logical :: tail_ready = .false.        !< fx_far, fy_far, s3_far computed
