@@ -135,7 +135,7 @@ def _launch(cmd: list[str], out: Path, progress: bool, threads: int | None) -> N
         env["OMP_NUM_THREADS"] = str(threads)
     bar = None
     with subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                          env=env) as proc:
+                          errors="replace", env=env) as proc:
         assert proc.stdout is not None and proc.stderr is not None
         for line in proc.stdout:
             parts = line.split()
