@@ -25,7 +25,6 @@ import numpy as np
 import pandas as pd
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
 
 from pyorch.run import run  # noqa: E402
 from pyorch.scene import Scene  # noqa: E402

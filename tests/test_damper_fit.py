@@ -1,0 +1,271 @@
+"""Granular damper analysis (pyorch.damper) on synthetic records with known parameters.
+
+Everything is deterministic (fixed seeds) and independent of the engine.
+"""
+from __future__ import annotations
+
+import io
+import math
+import sys
+
+import numpy as np
+import pandas as pd
+import pytest
+from scipy.signal import find_peaks
+
+from pyorch import damper as dmp
+
+THESIS = {"a": 0.17, "w": 1.05, "g0": -1.0, "z0": 1.0, "v0": 0.0}  # thesis Fig. 5.12
+SIGMA = 0.01
+
+
+def _underdamped_from_rest(t: np.ndarray, zeta: float, omega: float, z_eq: float = -1.0,
+                           z_start: float = 1.0) -> np.ndarray:
+    """Damped cosine released at rest from z_start (z'(0) = 0)."""
+    phi = -math.asin(zeta)
+    return dmp.damped_cosine(t, z_eq, (z_start - z_eq) / math.cos(phi), zeta, omega, phi)
+
+
+@pytest.fixture(scope="module")
+def vdp_record() -> tuple[np.ndarray, np.ndarray]:
+    t = np.linspace(0.0, 25.0, 501)
+    z = dmp.simulate_vdp(t, **THESIS)
+    return t, z + np.random.default_rng(12345).normal(0.0, SIGMA, t.size)
+
+
+@pytest.fixture(scope="module")
+def linear_record() -> tuple[np.ndarray, np.ndarray]:
+    t = np.linspace(0.0, 30.0, 601)
+    z = _underdamped_from_rest(t, zeta=0.1, omega=1.2)
+    return t, z + np.random.default_rng(54321).normal(0.0, SIGMA, t.size)
+
+
+# ---------------------------------------------------------------------------------------------------
+# Van der Pol-like model, eq. (5.12)
+# ---------------------------------------------------------------------------------------------------
+def test_vdp_rhs_is_eq_5_12() -> None:
+    z, v = 0.3, -0.7
+    a, w, g0 = 0.17, 1.05, -1.0
+    expected = g0 - w**2 * z - 2 * a * (z**2 - 2 * z) * v
+    np.testing.assert_allclose(dmp.vdp_rhs(0.0, np.array([z, v]), a, w, g0), [v, expected])
+
+
+def test_vdp_fit_recovers_parameters(vdp_record: tuple[np.ndarray, np.ndarray]) -> None:
+    t, z = vdp_record
+    fit = dmp.fit_vdp(t, z)
+    assert fit.free == dmp.VDP_PARAMS and fit.n_params == 5
+    for name, true in THESIS.items():
+        value, err = fit.params[name], fit.errors[name]
+        assert 0 < err < 0.01, (name, err)
+        assert abs(value - true) < 4 * err, (name, value, err)
+        if true != 0:
+            assert abs(value / true - 1) < 0.02, (name, value)
+        else:
+            assert abs(value) < 0.02
+    assert fit.rms == pytest.approx(SIGMA, rel=0.15)
+    assert fit.r2 > 0.999
+    assert fit.z_eq == pytest.approx(THESIS["g0"] / THESIS["w"] ** 2, rel=0.01)
+    s = fit.to_series()
+    assert s.name == "vdp" and {"a", "a_err", "rms", "r2", "aic"} <= set(s.index)
+
+
+def test_vdp_fit_with_fixed_initial_conditions(vdp_record: tuple[np.ndarray, np.ndarray]) -> None:
+    t, z = vdp_record
+    fit = dmp.fit_vdp(t, z, z0=1.0, v0=0.0, p0=(0.1, 1.0, -0.8))
+    assert fit.free == ("a", "w", "g0") and fit.n_params == 3
+    assert (fit.z0, fit.v0) == (1.0, 0.0)
+    assert math.isnan(fit.z0_err) and math.isnan(fit.v0_err)
+    for name in ("a", "w", "g0"):
+        assert abs(fit.params[name] - THESIS[name]) < 4 * fit.errors[name], name
+        assert abs(fit.params[name] / THESIS[name] - 1) < 0.02, name
+
+
+def test_vdp_predict_matches_simulation(vdp_record: tuple[np.ndarray, np.ndarray]) -> None:
+    t, z = vdp_record
+    fit = dmp.fit_vdp(t, z, z0=1.0, v0=0.0)
+    t_new = np.array([7.25, 0.0, 31.0, 3.1, 3.1])  # unsorted, repeated, beyond the data
+    order = np.argsort(t_new, kind="stable")
+    expected = np.empty_like(t_new)
+    expected[order] = dmp.simulate_vdp(t_new[order], fit.a, fit.w, fit.g0, 1.0, 0.0)
+    np.testing.assert_allclose(fit(t_new), expected, atol=1e-8)
+    assert fit(np.array([0.0]))[0] == 1.0
+    # times before t0 are integrated backwards, continuously through t0
+    back = fit.predict(np.array([-1e-6, -0.5]))
+    assert back[0] == pytest.approx(1.0, abs=1e-9) and np.isfinite(back[1])
+
+
+def test_normalise_anchors_and_vdp_round_trip() -> None:
+    t = np.linspace(0.0, 40.0, 801)
+    w = 1.05
+    z_true = dmp.simulate_vdp(t, 0.17, w, -w**2)  # rest state exactly at z_eq = -1
+    H = 10.5 + 0.1 * z_true + np.random.default_rng(7).normal(0.0, 1e-3, t.size)  # D1
+    rec = dmp.normalise(t + 5.0, H)
+    assert rec.z[0] == pytest.approx(1.0, abs=1e-12) and rec.t[0] == 0.0 and rec.t0 == 5.0
+    assert rec.z_eq == -1.0 and np.mean(rec.z[-100:]) == pytest.approx(-1.0, abs=1e-3)
+    assert rec.scale == pytest.approx(0.1, rel=0.02) and rec.offset == pytest.approx(10.5, abs=2e-3)
+    np.testing.assert_allclose(rec.height(rec.z), H, atol=1e-12)
+    np.testing.assert_allclose(rec.time(rec.t), t + 5.0, atol=1e-12)
+    assert list(rec.to_frame().columns) == ["t", "z"]
+    assert {"offset", "scale", "t0", "t_scale"} <= set(rec.to_series().index)
+    fit = dmp.fit_vdp(rec.t, rec.z)
+    assert fit.a == pytest.approx(0.17, rel=0.03)
+    assert fit.w == pytest.approx(w, rel=0.01)
+    assert fit.z_eq == pytest.approx(-1.0, abs=0.01)
+    auto = dmp.normalise(t, H, t_scale="auto")
+    assert auto.t_scale == pytest.approx(1.0 / dmp.fit_linear_oscillator(t, H).omega_d)
+
+
+def test_record_from_frame_filters_phase() -> None:
+    df = pd.DataFrame({"t": [0.0, 1.0, 2.0, 2.0, 3.0], "H": [5.0, 4.0, 3.0, 3.0, 2.0],
+                       "phase": [1, 6, 6, 6, 6]})
+    t, H = dmp.record_from_frame(df, phases=6)
+    np.testing.assert_array_equal(t, [1.0, 2.0, 3.0])
+    np.testing.assert_array_equal(H, [4.0, 3.0, 2.0])
+
+
+# ---------------------------------------------------------------------------------------------------
+# Linear oscillator and logarithmic decrement
+# ---------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize(("zeta", "omega"), [(0.05, 2.0), (0.15, 0.8)])
+def test_linear_fit_recovers_zeta_omega(zeta: float, omega: float) -> None:
+    t = np.linspace(0.0, 40.0, 801)
+    true = {"z_eq": 10.4, "A": 0.3, "zeta": zeta, "omega": omega, "phi": 0.4}
+    z = dmp.damped_cosine(t, **true) + np.random.default_rng(99).normal(0.0, 0.005, t.size)
+    fit = dmp.fit_linear_oscillator(t, z)
+    for name, value in true.items():
+        assert abs(fit.params[name] - value) < 4 * fit.errors[name], (name, fit.params[name])
+    assert fit.zeta == pytest.approx(zeta, rel=0.02)
+    assert fit.omega == pytest.approx(omega, rel=0.01)
+    assert fit.omega_d == pytest.approx(omega * math.sqrt(1 - zeta**2), rel=0.01)
+    assert fit.rms == pytest.approx(0.005, rel=0.15) and fit.r2 > 0.99
+    np.testing.assert_allclose(fit(t), dmp.damped_cosine(t, *fit.params.values()), atol=1e-12)
+
+
+@pytest.mark.parametrize(("zeta", "omega"), [(0.02, 1.0), (0.08, 1.3), (0.2, 3.0)])
+def test_log_decrement_clean(zeta: float, omega: float) -> None:
+    t = np.linspace(0.0, 60.0, 3001)
+    z = dmp.damped_cosine(t, -1.0, 2.0, zeta, omega, 0.3)
+    ld = dmp.log_decrement(t, z, z_eq=-1.0)
+    wd = omega * math.sqrt(1 - zeta**2)
+    assert ld.n_peaks >= 3
+    assert ld.zeta == pytest.approx(zeta, rel=0.02)
+    assert ld.delta == pytest.approx(2 * math.pi * zeta / math.sqrt(1 - zeta**2), rel=0.02)
+    assert ld.omega_d == pytest.approx(wd, rel=1e-3)
+    assert ld.period == pytest.approx(2 * math.pi / wd, rel=1e-3)
+    assert ld.omega_n == pytest.approx(omega, rel=1e-3)
+    assert ld.to_series()["n_peaks"] == ld.n_peaks
+
+
+def test_log_decrement_tail_mean_and_both_kinds() -> None:
+    t = np.linspace(0.0, 120.0, 4001)
+    z = dmp.damped_cosine(t, 10.4, 0.2, 0.05, 1.0, 0.0)
+    ld = dmp.log_decrement(t, z)  # z_eq from the tail mean
+    assert ld.z_eq == pytest.approx(10.4, abs=1e-4)
+    assert ld.zeta == pytest.approx(0.05, rel=0.02)
+    both = dmp.log_decrement(t, z, 10.4, kind="both")
+    assert both.zeta == pytest.approx(0.05, rel=0.02)
+    assert both.omega_d == pytest.approx(math.sqrt(1 - 0.05**2), rel=1e-3)
+
+
+def test_log_decrement_needs_two_peaks() -> None:
+    t = np.linspace(0.0, 10.0, 200)
+    with pytest.raises(ValueError, match="two usable extrema"):
+        dmp.log_decrement(t, np.exp(-t))
+
+
+# ---------------------------------------------------------------------------------------------------
+# Peaks
+# ---------------------------------------------------------------------------------------------------
+def test_peaks_count_on_noisy_record() -> None:
+    t = np.linspace(0.0, 31.0, 1551)  # last extremum at t = 29.8, well inside
+    zeta, omega, phi = 0.03, 2.0, 0.0
+    clean = dmp.damped_cosine(t, 10.0, 0.5, zeta, omega, phi)
+    noisy = clean + np.random.default_rng(2024).normal(0.0, 0.01, t.size)
+    n_max, n_min = len(find_peaks(clean)[0]), len(find_peaks(-clean)[0])
+    assert len(find_peaks(noisy)[0]) > 3 * n_max  # raw noise makes many spurious local maxima
+    pk = dmp.peaks(t, noisy, "both")
+    assert (pk["kind"] == "max").sum() == n_max and (pk["kind"] == "min").sum() == n_min
+    assert list(pk.columns) == ["i", "t", "z", "kind", "prominence"]
+    assert (pk["kind"].to_numpy()[1:] != pk["kind"].to_numpy()[:-1]).all()  # alternating
+    # extrema of e^{-s u} cos(wd u + phi): wd u + phi = -asin(zeta) + k pi
+    wd = omega * math.sqrt(1 - zeta**2)
+
+    def time_error(found: pd.DataFrame) -> float:
+        k = np.round((found["t"].to_numpy() * wd + phi + math.asin(zeta)) / math.pi)
+        t_true = (k * math.pi - math.asin(zeta) - phi) / wd
+        return float(np.mean(np.abs(found["t"].to_numpy() - t_true)))
+
+    # 3-point refinement sits on the noisiest sample near the top (~ sqrt(2 sigma / (A w^2)) away);
+    # a wider least-squares parabola (51 samples, +-1 rad of phase) averages the noise out
+    assert time_error(pk) < 0.08
+    wide = dmp.peaks(t, noisy, "both", window=51)
+    assert len(wide) == len(pk) and time_error(wide) < min(0.015, time_error(pk) / 3)
+    assert len(dmp.peaks(t, noisy, "max")) == n_max and len(dmp.peaks(t, noisy, "min")) == n_min
+
+
+def test_peaks_parabolic_refinement() -> None:
+    t = np.arange(0.0, 20.0, 0.1)
+    z = np.cos(t - 0.033)
+    pk = dmp.peaks(t, z, "max")
+    np.testing.assert_allclose(pk["t"], 0.033 + 2 * np.pi * np.arange(1, 4), atol=2e-4)
+    np.testing.assert_allclose(pk["z"], 1.0, atol=1e-4)
+    # the discrete samples alone are off by up to half a step
+    assert np.max(np.abs(t[pk["i"]] - pk["t"])) > 0.01
+
+
+# ---------------------------------------------------------------------------------------------------
+# Model comparison
+# ---------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("truth", ["linear", "vdp"])
+def test_compare_models_prefers_true_model(
+    truth: str, vdp_record: tuple[np.ndarray, np.ndarray], linear_record: tuple[np.ndarray, np.ndarray]
+) -> None:
+    t, z = vdp_record if truth == "vdp" else linear_record
+    table = dmp.compare_models(t, z)
+    assert list(table.index) == ["linear", "vdp"]
+    assert table["aic"].idxmin() == truth
+    assert table.loc[truth, "delta_aic"] == 0.0
+    other = "linear" if truth == "vdp" else "vdp"
+    assert table.loc[other, "delta_aic"] > 10.0
+    assert table.loc[truth, "rms"] == pytest.approx(SIGMA, rel=0.15)
+    assert np.isnan(table.loc["linear", "a"]) and np.isnan(table.loc["vdp", "zeta"])
+    expected_aic = table["n"] * np.log(table["rss"] / table["n"]) + 2 * table["n_params"]
+    np.testing.assert_allclose(table["aic"], expected_aic)
+
+
+# ---------------------------------------------------------------------------------------------------
+# SINDy (optional) and figures
+# ---------------------------------------------------------------------------------------------------
+def test_fit_sindy_recovers_eq_5_12() -> None:
+    pytest.importorskip("pysindy")
+    t = np.linspace(0.0, 25.0, 1001)
+    z = dmp.simulate_vdp(t, **THESIS)
+    model = dmp.fit_sindy(t, z)
+    assert len(model.equations) == 2 and all(isinstance(e, str) for e in model.equations)
+    assert "z v" in model.equations[1] and "z^2 v" in model.equations[1]
+    est = model.vdp_estimate()
+    for name in ("a", "w", "g0"):
+        assert est[name] == pytest.approx(THESIS[name], rel=0.03), name
+    # v' has exactly the four terms of eq. (5.12)
+    row = model.coefficients.loc["v'"]
+    assert set(row[row != 0].index) == {"1", "z", "z v", "z^2 v"}
+
+
+def test_fit_sindy_without_pysindy(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setitem(sys.modules, "pysindy", None)
+    with pytest.raises(ImportError, match="pip install pysindy"):
+        dmp.fit_sindy(np.linspace(0, 1, 20), np.zeros(20))
+
+
+def test_plots_return_figures(vdp_record: tuple[np.ndarray, np.ndarray]) -> None:
+    from matplotlib.figure import Figure
+
+    t, z = vdp_record
+    lin = dmp.fit_linear_oscillator(t, z)
+    vdp = dmp.fit_vdp(t, z, z0=1.0, v0=0.0)
+    figs = [dmp.plot_fit(t, z, [lin, vdp]), dmp.plot_fit(t, z, {"VdP": vdp}),
+            dmp.plot_phase(t, z), dmp.plot_phase(t, z, derivative="spline", fits=vdp)]
+    for fig in figs:
+        assert isinstance(fig, Figure) and fig.axes
+        fig.savefig(io.BytesIO(), format="png", dpi=50)
+    assert len(figs[0].axes[0].get_lines()) == 3  # data + two models
