@@ -2,7 +2,8 @@
 
     pyorch run SCENE.nml [--out DIR] [--set group.key=value ...] [--door exe|f2py] [--no-plots]
     pyorch check SCENE.nml [--set ...]
-    pyorch plot RUN_DIR [--out DIR]
+    pyorch plot RUN_DIR [--out DIR] [--no-structure]
+    pyorch analyze RUN_DIR [--out DIR]
     pyorch bench trade|bias [--scene S] [--seeds N] [--quick] [--out DIR]
 """
 from __future__ import annotations
@@ -36,6 +37,12 @@ def _parser() -> argparse.ArgumentParser:
     pl = sub.add_parser("plot", help="write the standard figures of a run directory")
     pl.add_argument("run_dir", type=Path)
     pl.add_argument("--out", type=Path, default=None)
+    pl.add_argument("--no-structure", action="store_true",
+                    help="skip the Voronoi/force figures of pyorch.analyze.plot_run")
+
+    an = sub.add_parser("analyze", help="structure/force tables of a run directory as CSV")
+    an.add_argument("run_dir", type=Path)
+    an.add_argument("--out", type=Path, default=None, help="default RUN_DIR/analysis")
 
     b = sub.add_parser("bench", help="speed/accuracy trade study or truncation bias study")
     b.add_argument("what", choices=["trade", "bias"])
@@ -65,6 +72,17 @@ def main(argv: list[str] | None = None) -> int:
             from pyorch.plots import save_run_plots
 
             for p in save_run_plots(args.run_dir, args.out):
+                print(p)
+            if not args.no_structure:
+                from pyorch.analyze import plot_run
+
+                for p in plot_run(args.run_dir, args.out):
+                    print(p)
+            return 0
+        if args.cmd == "analyze":
+            from pyorch.analyze import write_tables
+
+            for p in write_tables(args.run_dir, args.out):
                 print(p)
             return 0
     except SceneError as exc:
