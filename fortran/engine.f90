@@ -158,7 +158,11 @@ contains
         call set_error(st, exit_numerical, trim(buf))
         return
       end if
-      if (need_fmag) s%fmag = sqrt(s%fx**2 + s%fy**2)
+      if (need_fmag) then
+        s%fmx = s%fx
+        s%fmy = s%fy
+        s%fmag = sqrt(s%fx**2 + s%fy**2)
+      end if
       if (m%gravity_on) call gravity_force(s%n, s%mass, m%big_g, s%fy)
       if (m%dry_order > 0) call dry_friction(s%n, s%nfac, s%s3, m%mu_s, m%mu_d, m%v_t, &
            s%vx, s%vy, s%fx, s%fy)

@@ -66,8 +66,9 @@ contains
          '# piston.dat: piston history (force = push of all particles on the piston). '// &
          trim(units), '# step t[T] H[D1] F_piston[m1*g] phi[1] phase')
     if (frames_on) call open1(o%u_frame, 'particles.dat', &
-         '# particles.dat: particle frames (fmag = |pair + wall magnetic force|). '//trim(units), &
-         '# step t[T] id species x[D1] y[D1] vx[D1/T] vy[D1/T] fx[m1*g] fy[m1*g] fmag[m1*g]')
+         '# particles.dat: particle frames (f = total force; fm = magnetic force of pairs + walls). '// &
+         trim(units), '# step t[T] id species x[D1] y[D1] vx[D1/T] vy[D1/T] fx[m1*g] fy[m1*g] '// &
+         'fmag[m1*g] fmx[m1*g] fmy[m1*g]')
     if (dist_on) call open1(o%u_dist, 'mean_distance.dat', &
          '# mean_distance.dat: mean inter-particle distance, thesis eq. (2.1). '//trim(units), &
          '# step t[T] D_hat[D1]')
@@ -142,8 +143,9 @@ contains
     at(s%id) = [(k, k = 1, s%n)]     ! rows in particle-id order
     do k = 1, s%n
       i = at(k)
-      write(o%u_frame, '(i0,1x,'//rfmt//',1x,i0,1x,i0,7(1x,'//rfmt//'))') s%step, s%t, s%id(i), &
-           s%species(i), s%x(i), s%y(i), s%vx(i), s%vy(i), s%fx(i), s%fy(i), s%fmag(i)
+      write(o%u_frame, '(i0,1x,'//rfmt//',1x,i0,1x,i0,9(1x,'//rfmt//'))') s%step, s%t, s%id(i), &
+           s%species(i), s%x(i), s%y(i), s%vx(i), s%vy(i), s%fx(i), s%fy(i), s%fmag(i), &
+           s%fmx(i), s%fmy(i)
     end do
   end subroutine write_frame
 

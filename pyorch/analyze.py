@@ -21,7 +21,7 @@ Tables of :func:`analyze_run` (lengths D1, times T, forces m1 g):
     ``y``, ``fx``, ``fy`` (total force), ``fmag`` (|pair + wall magnetic force|), ``F_norm`` (fmag /
     max fmag of the frame), ``F_norm_species`` (fmag / max fmag of the species), ``interior``
     (Algorithm 4.3), ``fluctuation`` (eq. 4.35 on fmag, per species over interior particles, 0
-    outside) and ``fmx``, ``fmy`` (magnetic force components recomputed by the engine, see
+    outside) and ``fmx``, ``fmy`` (magnetic force components written by the engine, see
     :func:`magnetic_force_vectors`; NaN when that is not possible).
 ``force_histogram``
     :func:`pyorch.analysis.force_histogram` of ``F_norm`` by species at maximum compression (Knuth bins
@@ -47,7 +47,6 @@ on stderr says so). The across-run table of :mod:`pyorch.structure_plots` (one r
 from __future__ import annotations
 
 import sys
-import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -123,64 +122,23 @@ def _join_nearest(left: pd.DataFrame, right: pd.DataFrame, cols: list[str]) -> p
 
 def magnetic_force_vectors(run_dir: str | Path, frame: pd.DataFrame, piston_h: float,
                            rtol: float = 1e-6) -> pd.DataFrame | None:
-    """Magnetic force components (pair + walls + piston) of one frame, recomputed by the engine.
+    """Magnetic force components (pair + walls + piston) of one frame [m1 g].
 
-    particles.dat holds the total force (magnetic + weight + friction) and only the magnitude of the
-    magnetic part (``fmag``). This loads the run's scene into the in-process engine with gravity and
-    friction off and the piston held at ``piston_h``, sets the frame's positions (zero velocities),
-    computes the forces and returns them by id. The result is checked against ``fmag`` (relative
-    difference <= ``rtol``) and against the species of the frame. It replaces whatever scene the
-    in-process engine (f2py door) had loaded.
+    The engine writes them to particles.dat (columns ``fmx``, ``fmy``; ``fmag`` is
+    their norm). Runs written before those columns existed return None.
+    ``run_dir``, ``piston_h`` and ``rtol`` are kept for API compatibility.
 
     Returns
     -------
     pandas.DataFrame or None
-        Columns ``id``, ``fmx``, ``fmy`` [m1 g]; None (with a message) when the compiled engine is not
-        importable, the scene is refused, or the check fails.
+        Columns ``id``, ``fmx``, ``fmy`` [m1 g], sorted by id.
     """
-    try:
-        from pyorch import _engine  # compiled module
-        from pyorch.scene import Scene
-    except ImportError:
-        _say("compiled engine not available: magnetic force vectors skipped")
+    if not {"fmx", "fmy"} <= set(frame.columns):
+        _say("particles.dat has no fmx/fmy columns (older run): magnetic force vectors skipped")
         return None
-    run_dir = Path(run_dir)
-    h = float(piston_h)
-    scene = Scene.read(run_dir / "scene.nml").with_overrides({
-        "protocol.h_start": h, "protocol.h0": h, "protocol.hf": 0.5 * h,
-        "physics.gravity": False, "physics.dry_friction": "none", "physics.viscous_gamma": 0.0,
-    })
-    api = _engine.api
-    with tempfile.TemporaryDirectory() as tmp:
-        path = scene.write(Path(tmp) / "scene.nml")
-        code, msg = api.load_scene(str(path))
-    if code != 0:
-        text = msg.decode(errors="replace") if isinstance(msg, bytes) else str(msg)
-        _say(f"engine refused the force scene: {text.strip()}")
-        return None
-    n = int(api.n_particles())
     fr = frame.sort_values("id")
-    if n != len(fr) or not np.array_equal(fr["id"].to_numpy(), np.arange(1, n + 1)):
-        _say("frame ids do not match the scene: magnetic force vectors skipped")
-        return None
-    h_engine = float(api.piston_state()[0])
-    z = np.zeros(n)
-    code, msg = api.set_state(fr["x"].to_numpy(float), fr["y"].to_numpy(float), z, z)
-    if code == 0:
-        code, msg = api.compute_forces()
-    if code != 0:
-        _say(f"engine force evaluation failed: {msg!r}")
-        return None
-    _, _, _, _, fx, fy, species, _, _ = api.get_state(n)
-    fmag = fr["fmag"].to_numpy(float)
-    err = np.abs(np.hypot(fx, fy) - fmag) / max(float(fmag.max()), 1e-300)
-    if abs(h_engine - h) > 1e-9 * max(h, 1.0) or err.max() > rtol or (
-            "species" in fr.columns and not np.array_equal(np.asarray(species), fr["species"].to_numpy())):
-        _say("recomputed magnetic forces do not match particles.dat "
-             f"(max rel. diff {err.max():.2e}): skipped")
-        return None
-    return pd.DataFrame({"id": fr["id"].to_numpy(), "fmx": np.asarray(fx, float),
-                         "fmy": np.asarray(fy, float)})
+    return pd.DataFrame({"id": fr["id"].to_numpy(), "fmx": fr["fmx"].to_numpy(float),
+                         "fmy": fr["fmy"].to_numpy(float)})
 
 
 def _summary_piston(pis: pd.DataFrame | None, md: pd.DataFrame | None) -> dict[str, float]:
@@ -207,9 +165,7 @@ def _forces_at(run_dir: Path, frame: pd.DataFrame, h: float, diameters: dict[int
     magnetic = f.assign(fx=fm, fy=0.0)
     f["fluctuation"] = analysis.force_fluctuations(magnetic, mask="interior")["fluctuation"].to_numpy()
     vec = magnetic_force_vectors(run_dir, f, h) if vectors else None
-    if vec is not None:
-        f = f.merge(vec, on="id", how="left")
-    else:
+    if vec is None:  # vectors not wanted, or a run written before fmx/fmy existed
         f["fmx"] = np.nan
         f["fmy"] = np.nan
     cols = ["step", "t", "id", "species", "x", "y", "fx", "fy", "fmag", "F_norm", "F_norm_species",

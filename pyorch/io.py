@@ -70,7 +70,8 @@ def piston(run_dir: str | Path) -> pd.DataFrame:
 
 
 def frames(run_dir: str | Path) -> pd.DataFrame:
-    """particles.dat (long format): step, t, id, species, x, y, vx, vy, fx, fy, fmag."""
+    """particles.dat (long format): step, t, id, species, x, y [D1], vx, vy [D1/T],
+    fx, fy (total force), fmag, fmx, fmy (magnetic force of pairs + walls) [m1 g]."""
     return read_dat(Path(run_dir) / "particles.dat")
 
 
