@@ -5,7 +5,8 @@ module api
   use errors, only: status_t
   use api_state, only: the_sim
   use kinds, only: i8
-  use engine, only: sim_t, sim_load, sim_forces, sim_step, sim_energy, piston_energy
+  use engine, only: sim_t, sim_load, sim_forces, sim_step, sim_energy, piston_energy, &
+       time_pair_pass
   use model, only: piston_free
   use runner, only: sim_execute, sim_resume
   use protocol, only: piston_at
@@ -16,7 +17,7 @@ module api
   private
   public :: run_scene, resume_run, load_scene, n_particles, get_state, set_state, compute_forces, &
        advance_steps, piston_state, model_groups, energies, kernel, precision_probe, &
-       set_threads, list_audit, protocol_times, set_piston
+       set_threads, list_audit, protocol_times, set_piston, bench_pairs
 
 contains
 
@@ -187,12 +188,21 @@ contains
     t_relax = the_sim%p%t_relax; t_comp = the_sim%p%t_comp; t_total = the_sim%p%t_total
   end subroutine protocol_times
 
+  !> Time nrep pair passes at the current positions: seconds, pairs per pass.
+  subroutine bench_pairs(nrep, seconds, pairs)
+    integer, intent(in) :: nrep
+    real(dp), intent(out) :: seconds
+    integer, intent(out) :: pairs
+    integer(i8) :: p8
+    call time_pair_pass(the_sim, nrep, seconds, p8)
+    pairs = int(p8)
+  end subroutine bench_pairs
+
   !> Number of OpenMP threads for the force loops (no-op without OpenMP).
   subroutine set_threads(n)
-    !$ use omp_lib, only: omp_set_num_threads
+    use parallel, only: choose_threads
     integer, intent(in) :: n
-    !$ call omp_set_num_threads(n)
-    if (n < 0) continue
+    call choose_threads(n)
   end subroutine set_threads
 
   !> Audit of the neighbour list against brute force at the current positions:

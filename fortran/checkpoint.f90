@@ -14,7 +14,7 @@ module checkpoint
   public :: checkpoint_write, checkpoint_read, truncate_file
 
   integer, parameter :: magic = 20261122   !< format tag
-  integer, parameter :: version = 2
+  integer, parameter :: version = 3
 
   interface
     integer(c_int) function c_rename(old, new) bind(C, name='rename')
@@ -56,7 +56,7 @@ contains
     write(u) rng
     write(u) s%x, s%y, s%vx, s%vy, s%xp, s%yp, s%fx, s%fy, s%fmag, s%s3, &
          s%fx_far, s%fy_far, s%s3_far, s%id, s%species, s%mass, s%mu, s%wsin, s%nfac
-    write(u) nl%valid, nl%builds, nl%pairs, allocated(nl%start)
+    write(u) nl%valid, nl%builds, nl%pairs, nl%evaluated, allocated(nl%start)
     if (allocated(nl%start)) then
       write(u) size(nl%cell_start), size(nl%nbr)
       write(u) nl%cell_start, nl%cell_part, nl%start, nl%nbr, nl%xref, nl%yref
@@ -103,7 +103,7 @@ contains
     end if
     if (ios == 0) read(u, iostat=ios) s%x, s%y, s%vx, s%vy, s%xp, s%yp, s%fx, s%fy, s%fmag, &
          s%s3, s%fx_far, s%fy_far, s%s3_far, s%id, s%species, s%mass, s%mu, s%wsin, s%nfac
-    if (ios == 0) read(u, iostat=ios) nl%valid, nl%builds, nl%pairs, has_list
+    if (ios == 0) read(u, iostat=ios) nl%valid, nl%builds, nl%pairs, nl%evaluated, has_list
     if (ios == 0 .and. has_list) then
       read(u, iostat=ios) ncs, nnb
       if (ios == 0 .and. allocated(nl%cell_start)) then

@@ -11,6 +11,7 @@ module engine
   use initial, only: place_particles
   use pair_forces, only: pair_forces_all, pair_forces_list, pair_forces_far, pair_energy_all
   use state, only: state_permute
+  use parallel, only: init_threads
   use neighbours, only: nlist_t, nlist_setup, nlist_due, nlist_bin, nlist_build, &
        nb_all_pairs, nb_cells
   use walls, only: wall_forces, wall_energy
@@ -21,7 +22,8 @@ module engine
   implicit none
   private
 
-  public :: sim_t, sim_load, sim_forces, sim_step, sim_energy, pairs_per_step, piston_energy
+  public :: sim_t, sim_load, sim_forces, sim_step, sim_energy, pairs_per_step, piston_energy, &
+       time_pair_pass
 
   type :: sim_t
     type(scene_t) :: sc
@@ -50,6 +52,7 @@ contains
     character(len=*), intent(in) :: path
     type(status_t), intent(inout) :: st
     sim%scene_path = trim(path)
+    call init_threads()
     call scene_read(path, sim%sc, st)
     if (st%code /= 0) return
     call scene_validate(sim%sc, path, st)
@@ -188,6 +191,7 @@ contains
       r3 = m%dry_order > 0
       if (m%neighbour == nb_all_pairs) then
         call pair_forces_all(s%n, s%x, s%y, s%mu, s%wsin, m%k_pair, r3, s%fx, s%fy, s%s3, r2min)
+        nl%evaluated = nl%evaluated + int(s%n, i8)*int(s%n - 1, i8)/2
         return
       end if
       if (nlist_due(nl, s%n, s%x, s%y)) then
@@ -201,6 +205,7 @@ contains
       end if
       call pair_forces_list(s%n, s%x, s%y, s%mu, s%wsin, m%k_pair, m%r_cut**2, m%shift4, &
            nl%check, r3, nl%start, nl%nbr, s%fx, s%fy, s%s3, r2min)
+      nl%evaluated = nl%evaluated + nl%pairs
       if (m%tail_frozen) then
         if (mod(s%step, int(m%tail_every, i8)) == 0 .or. .not. s%tail_ready) then
           call pair_forces_far(s%n, s%x, s%y, s%mu, s%wsin, m%k_pair, m%r_cut**2, r3, &
@@ -213,6 +218,28 @@ contains
       end if
     end associate
   end subroutine pair_pass
+
+  !> Micro-benchmark: nrep pair passes (strategy of the scene) at the current
+  !> positions; wall-clock seconds and pairs evaluated per pass.
+  subroutine time_pair_pass(sim, nrep, seconds, pairs)
+    type(sim_t), intent(inout) :: sim
+    integer, intent(in) :: nrep
+    real(dp), intent(out) :: seconds
+    integer(i8), intent(out) :: pairs
+    integer(i8) :: c0, c1, rate, e0
+    integer :: k
+    real(dp) :: r2min
+    call pair_pass(sim, r2min)        ! builds the list if needed
+    e0 = sim%nl%evaluated
+    call system_clock(c0, rate)
+    do k = 1, nrep
+      sim%s%fx = 0; sim%s%fy = 0; sim%s%s3 = 0
+      call pair_pass(sim, r2min)
+    end do
+    call system_clock(c1)
+    seconds = real(c1 - c0, dp)/real(rate, dp)
+    pairs = (sim%nl%evaluated - e0)/max(1, nrep)
+  end subroutine time_pair_pass
 
   !> Free piston at the start of a step: held during the relaxation, nudged
   !> (lifted and stopped) at the start of the recorded phase, otherwise a body

@@ -33,6 +33,7 @@ module neighbours
     logical :: valid = .false.             !< a list exists for the current ordering
     integer(i8) :: builds = 0              !< number of list builds
     integer(i8) :: pairs = 0               !< pairs in the current list
+    integer(i8) :: evaluated = 0           !< pair evaluations so far (list lengths summed over steps)
   end type nlist_t
 
 contains

@@ -166,12 +166,13 @@ contains
 
   !> run.json, replaced atomically.
   subroutine write_run_json(dir, scene_path, status, code, message, steps_done, steps_total, &
-       t_now, wall, m, n, builds, pairs, st)
+       t_now, wall, m, n, builds, pairs, evaluated, st)
     character(len=*), intent(in) :: dir, scene_path, status, message
     integer, intent(in) :: code, n
     integer(i8), intent(in) :: steps_done, steps_total
     integer(i8), intent(in) :: builds   !< neighbour-list builds
     integer(i8), intent(in) :: pairs    !< pairs evaluated per step (list length or N(N-1)/2)
+    integer(i8), intent(in) :: evaluated  !< pair evaluations of the whole run
     real(dp), intent(in) :: t_now, wall
     type(model_t), intent(in) :: m
     type(status_t), intent(inout) :: st
@@ -203,6 +204,7 @@ contains
     write(u, '(a,'//rfmt//',a)') '  "wall_time_per_step_s": ', per_step, ','
     write(u, '(a,i0,a)') '  "list_builds": ', builds, ','
     write(u, '(a,i0,a)') '  "pairs_per_step": ', pairs, ','
+    write(u, '(a,i0,a)') '  "pair_evaluations": ', evaluated, ','
     write(u, '(a,i0,a)') '  "threads": ', n_threads(), ','
     write(u, '(a)') '  "units": {'
     write(u, '(a,'//rfmt//',a)') '    "length_m": ', m%length_unit, ','

@@ -195,7 +195,7 @@ contains
     else
       work = real(start(n + 1) - 1, dp)
     end if
-    !$ if (work >= 2.0e4_dp) nt = min(omp_get_max_threads(), 64)
+    !$ if (work >= 5.0e4_dp) nt = min(omp_get_max_threads(), 64)
     r2low = huge(1.0_dp)
     if (nt == 1) then
       call rows(1, n, fx, fy, s3, r2low)

@@ -101,7 +101,7 @@ contains
     type(status_t), intent(inout) :: st
     call write_run_json(sim%dir, sim%scene_path, status, st%code, trim(st%msg), sim%s%step, &
          sim%p%n_steps, sim%s%t, wall_time(sim), sim%m, sim%s%n, sim%nl%builds, &
-         pairs_per_step(sim), st)
+         pairs_per_step(sim), sim%nl%evaluated, st)
   end subroutine run_json
 
   subroutine save(sim, name, st)

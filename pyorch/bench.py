@@ -109,7 +109,9 @@ def measure(r: Run) -> dict[str, Any]:
                            "steps": meta["steps_done"],
                            "list_builds": meta.get("list_builds", 0),
                            "pairs_per_step": meta.get("pairs_per_step", 0)}
-    out["pair_evals_per_s"] = out["pairs_per_step"] / max(out["time_per_step_s"], 1e-30)
+    # whole-run rate: pair evaluations (list lengths summed over the steps) per second of run
+    evaluated = meta.get("pair_evaluations", out["pairs_per_step"] * out["steps"])
+    out["pair_evals_per_s"] = evaluated / max(out["wall_time_s"], 1e-30)
     if meta["status"] != "completed":
         return out
     pis = r.piston()

@@ -75,24 +75,29 @@ def test_list_never_misses_a_pair_under_adversarial_motion(door, make_scene, api
     assert builds > 2 and pairs > 0
 
 
+BIG = {"particles.n": 700, "cell.width": 50.0, "cell.height": 50.0, "particles.fill_height": 50.0,
+       "protocol.h_start": 50.0}  # > 5e4 pairs per step: the force passes use the threads
+
+
 def test_thread_count_does_not_change_results(door, make_scene, api):
     try:
         api.set_threads(1)
-        f1x, f1y, _ = forces_with(door, make_scene, "verlet", {"integration.r_cut": 7.13})
-        a1x, a1y, _ = forces_with(door, make_scene, "all_pairs")
+        f1x, f1y, _ = forces_with(door, make_scene, "verlet", dict(BIG, **{"integration.r_cut": 20.0}))
+        a1x, a1y, _ = forces_with(door, make_scene, "all_pairs", BIG)
         api.set_threads(2)
-        f2x, f2y, _ = forces_with(door, make_scene, "verlet", {"integration.r_cut": 7.13})
-        a2x, a2y, _ = forces_with(door, make_scene, "all_pairs")
+        f2x, f2y, _ = forces_with(door, make_scene, "verlet", dict(BIG, **{"integration.r_cut": 20.0}))
+        a2x, a2y, _ = forces_with(door, make_scene, "all_pairs", BIG)
     finally:
-        api.set_threads(2)
+        api.set_threads(1)
     for (ax, ay), (bx, by) in (((f1x, f1y), (f2x, f2y)), ((a1x, a1y), (a2x, a2y))):
         scale = np.max(np.hypot(ax, ay))
         assert np.max(np.hypot(ax - bx, ay - by)) < 1e-12 * scale
 
 
 def test_exe_threads_1_and_2_agree(make_scene, tmp_path):
-    ov = dict(BOX, **{"integration.neighbour": "verlet", "integration.r_cut": 7.13,
-                      "protocol.t_end": 0.2, "output.piston_every": 10, "output.frame_every": 100})
+    ov = dict(BOX, **BIG, **{"integration.neighbour": "verlet", "integration.r_cut": 20.0,
+                             "protocol.t_end": 0.1, "output.piston_every": 10,
+                             "output.frame_every": 50})
     scene = make_scene("demo", ov)
     a = run(scene, tmp_path / "t1", progress=False, threads=1)
     b = run(scene, tmp_path / "t2", progress=False, threads=2)
