@@ -5,6 +5,7 @@
     pyorch plot RUN_DIR [--out DIR] [--no-structure]
     pyorch analyze RUN_DIR [--out DIR]
     pyorch bench trade|bias [--scene S] [--seeds N] [--quick] [--out DIR]
+    pyorch sweep SWEEP.toml [--workers N] [--scheduler ADDR] [--cluster local|slurm]
 """
 from __future__ import annotations
 
@@ -44,6 +45,10 @@ def _parser() -> argparse.ArgumentParser:
     an.add_argument("run_dir", type=Path)
     an.add_argument("--out", type=Path, default=None, help="default RUN_DIR/analysis")
 
+    from pyorch.sweep import add_parser as add_sweep_parser
+
+    add_sweep_parser(sub)
+
     b = sub.add_parser("bench", help="speed/accuracy trade study or truncation bias study")
     b.add_argument("what", choices=["trade", "bias"])
     b.add_argument("--scene", type=Path, default=Path("runs/bench_compression.nml"))
@@ -64,6 +69,10 @@ def main(argv: list[str] | None = None) -> int:
             info = validate(Scene.read(args.scene).with_overrides(args.overrides))
             print(f"ok: {info['n_particles']} particles, {info['n_steps']} steps")
             return 0
+        if args.cmd == "sweep":
+            from pyorch.sweep import cmd_sweep
+
+            return cmd_sweep(args)
         if args.cmd == "bench":
             from pyorch.bench import main_bench
 

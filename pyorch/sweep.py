@@ -1,0 +1,724 @@
+"""Parameter sweeps: a base scene, a grid (or list) of overrides and replicate seeds.
+
+A sweep expands into *points*; each point is one run directory of the sweep
+directory with a stable name made of its varying parameters and a short hash of
+the base scene and of all its overrides, e.g.
+``piston_speed=0.5_seed=3-1a2b3c4d``. The points are written to
+``manifest.json`` before anything runs; the results (one row per point) to
+``results.csv`` (and ``results.parquet`` when pyarrow is importable).
+
+Spec file (TOML; relative paths are relative to the TOML file)::
+
+    base = "../standard.nml"          # base scene (namelist)
+    out = "../out/sweeps/speeds"      # sweep directory (default <base dir>/out/sweeps/<toml stem>)
+    seeds = [1, 2, 3]                 # replicates -> particles.seed
+    [grid]                            # cartesian product of these values
+    "protocol.piston_speed" = [0.02318, 0.0343, 0.1]
+    [set]                             # fixed overrides for every point
+    "protocol.t_relax" = 100.0
+    [[points]]                        # explicit points (combined with [grid] as a product)
+    "particles.n" = 92
+    "cell.width" = 30.0
+
+Keys are ``group.key`` (quoted, or written as nested tables). Array keys take
+list values (``"particles.species_diameter" = [1.0, 0.6]``); a single array
+element (``species_diameter(2)``) cannot be set.
+
+Python API::
+
+    sw = Sweep.from_toml("runs/sweeps/piston_speeds.toml")
+    sw.points()                       # DataFrame: name, parameters, dir, overrides
+    df = sw.run()                     # LocalCluster, one worker process per core
+    df = sw.run(scheduler_address="tcp://host:8786")   # join an existing cluster
+    df = sw.run(cluster="slurm", n_workers=40)         # dask-jobqueue SLURMCluster
+
+Execution (dask.distributed): every point is one task, :func:`run_point`,
+which launches the ``magbed`` executable with ``OMP_NUM_THREADS=1`` and never
+raises: a refused or failed point is a row with its status and message.
+
+* ``cluster="local"`` (default): ``LocalCluster`` with ``n_workers`` (default:
+  usable cores) worker processes of one thread each; the dashboard gets a free
+  port (its link is printed when bokeh is installed); ``cluster_kwargs`` are
+  passed to LocalCluster (e.g. ``{"dashboard_address": ":8787"}``).
+* ``scheduler_address=...``: join a running scheduler (e.g. started by
+  ``dask scheduler`` + ``dask worker --nthreads 1 ...``); ``client=`` accepts
+  an existing ``distributed.Client``.
+* ``cluster="slurm"``: ``dask_jobqueue.SLURMCluster`` configured by the
+  ``jobqueue.slurm`` section of the dask config (copy
+  ``runs/sweeps/slurm_example.yaml`` to ``~/.config/dask/jobqueue.yaml`` and
+  edit account/queue/walltime), scaled to ``n_workers`` workers
+  (default: min(points, 32)); ``cluster_kwargs`` are passed to SLURMCluster.
+  The sweep directory must be on a file system shared with the compute nodes.
+
+Resuming: running a sweep again skips points whose ``run.json`` says
+``completed``; a point left ``running`` (dead worker), ``interrupted``
+(SIGTERM/SIGINT) or ``paused`` is resumed from its ``checkpoint.bin`` with
+``pyorch.run.resume`` when both exist, otherwise it (like any failed point) is
+run again from scratch. If the engine of a ``running`` point is still alive on
+this host (orphan of a killed worker) the task waits for it; a run.json updated
+less than STALE_GRACE_S ago gets that long to turn final (engine dying on
+another host).
+
+Metrics: ``metrics=`` is a picklable callable ``Run -> dict``; the default
+:func:`summary_metrics` gives F_max [m1 g], H_at_F_max [D1], D_hat [D1] and the
+n5/n6/n7/Psi6 of the frame nearest to maximum compression.
+"""
+from __future__ import annotations
+
+import argparse
+import hashlib
+import importlib.util
+import inspect
+import itertools
+import json
+import math
+import os
+import re
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any, Callable, Iterable, Mapping, Sequence
+
+import pandas as pd
+
+from pyorch import RunError, SceneError
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
+
+MetricFn = Callable[[Any], Mapping[str, Any]]
+TaskFn = Callable[..., dict]
+
+SEED_KEY = "particles.seed"
+MANIFEST = "manifest.json"
+RESULTS = "results"
+STALE_GRACE_S = 30.0  # s: a 'running' run.json younger than this may belong to a dying engine
+RESUMABLE = ("running", "interrupted", "paused")  # run.json statuses a checkpoint can continue
+METRIC_KEYS = ("F_max", "H_at_F_max", "D_hat", "n5", "n6", "n7", "Psi6")
+_TOML_KEYS = {"base", "out", "seeds", "grid", "set", "points", "description"}
+_KEY = re.compile(r"^[a-z_][a-z0-9_]*\.[a-z_][a-z0-9_]*$")
+_UNSAFE = re.compile(r"[^A-Za-z0-9._+=,-]+")
+_NAME_MAX = 100  # characters of the readable part of a point name
+
+
+# --------------------------------------------------------------------------------------------------
+# Names
+# --------------------------------------------------------------------------------------------------
+def _canonical(obj: Any) -> str:
+    """Deterministic JSON text of nested dicts/lists/scalars (for hashing)."""
+    return json.dumps(obj, sort_keys=True, separators=(",", ":"), default=str)
+
+
+def _fmt(value: Any) -> str:
+    """Short readable form of a parameter value (6 significant digits for floats)."""
+    if isinstance(value, bool):
+        return "T" if value else "F"
+    if isinstance(value, float):
+        return f"{value:.6g}"
+    if isinstance(value, (list, tuple)):
+        return ",".join(_fmt(v) for v in value)
+    return str(value)
+
+
+def _short_keys(keys: Sequence[str]) -> dict[str, str]:
+    """``group.key`` -> ``key`` unless two groups share the key name."""
+    tails = [k.split(".", 1)[1] for k in keys]
+    return {k: (t if tails.count(t) == 1 else k) for k, t in zip(keys, tails)}
+
+
+def point_name(overrides: Mapping[str, Any], label_keys: Sequence[str] | None = None,
+               base: Mapping[str, Any] | None = None, prefix: str = "point") -> str:
+    """Stable directory name of a point: ``key=value_..._key=value-<hash8>``.
+
+    The readable part lists ``label_keys`` (default: all override keys, sorted);
+    the 8-hex hash covers the base scene groups (if given) and every override,
+    so equal inputs always give the same name and different ones differ.
+    """
+    ov = {k.lower(): v for k, v in overrides.items()}
+    keys = [k.lower() for k in label_keys] if label_keys is not None else sorted(ov)
+    short = _short_keys(keys)
+    label = "_".join(f"{short[k]}={_fmt(ov[k])}" for k in keys if k in ov)
+    label = _UNSAFE.sub("-", label)[:_NAME_MAX].strip("_-") or prefix
+    digest = hashlib.sha256(_canonical({"base": base or {}, "overrides": ov}).encode()).hexdigest()
+    return f"{label}-{digest[:8]}"
+
+
+# --------------------------------------------------------------------------------------------------
+# Metrics
+# --------------------------------------------------------------------------------------------------
+def _nan_metrics() -> dict[str, float]:
+    return {k: math.nan for k in METRIC_KEYS}
+
+
+def _nearest_row(df: pd.DataFrame, step: int) -> pd.Series:
+    """Row of ``df`` whose ``step`` is nearest to ``step``."""
+    return df.loc[(df["step"] - step).abs().idxmin()]
+
+
+def _frame_metrics_near(run: Any, step: int) -> dict[str, float]:
+    """n5, n6, n7, Psi6 of the particle frame nearest to ``step`` (NaN without frames)."""
+    from pyorch.analysis import frame_metrics
+    from pyorch.io import frame_at
+
+    if not (run.dir / "particles.dat").is_file():
+        return {}
+    frames = run.frames()
+    if frames.empty:
+        return {}
+    steps = pd.Series(frames["step"].unique())
+    nearest = int(steps.iloc[(steps - step).abs().idxmin()])
+    fm = frame_metrics(frame_at(frames, nearest))
+    return {k: float(fm[k]) for k in ("n5", "n6", "n7", "Psi6")}
+
+
+def summary_metrics(run: Any) -> dict[str, float]:
+    """Default per-point metrics of a completed run (NaN when not available).
+
+    F_max: maximum piston force over the compression phase (phase 2) [m1 g];
+    H_at_F_max: piston height at that step [D1]; D_hat: mean inter-particle
+    distance [D1] at the mean_distance.dat row nearest to the F_max step;
+    n5, n6, n7 (Voronoi polygon fractions) and Psi6 of the particle frame
+    nearest to the F_max step (taken as maximum compression).
+    """
+    out = _nan_metrics()
+    piston = run.piston()
+    comp = piston[piston["phase"] == 2]
+    if comp.empty:
+        return out
+    peak = comp.loc[comp["F_piston"].idxmax()]
+    step = int(peak["step"])
+    out["F_max"], out["H_at_F_max"] = float(peak["F_piston"]), float(peak["H"])
+    if (run.dir / "mean_distance.dat").is_file():
+        md = run.mean_distance()
+        if not md.empty:
+            out["D_hat"] = float(_nearest_row(md, step)["D_hat"])
+    out.update(_frame_metrics_near(run, step))
+    return out
+
+
+# --------------------------------------------------------------------------------------------------
+# The task
+# --------------------------------------------------------------------------------------------------
+def _read_status(out: Path) -> dict[str, Any] | None:
+    """run.json of ``out`` (None if absent or unreadable)."""
+    try:
+        with open(out / "run.json", encoding="utf-8") as fh:
+            return json.load(fh)
+    except (OSError, ValueError):
+        return None
+
+
+def _live_engines(out: Path) -> list[Any]:
+    """psutil processes of ``magbed`` still writing into ``out`` (orphans of a dead worker)."""
+    try:
+        import psutil
+    except ImportError:  # pragma: no cover - psutil comes with distributed
+        return []
+    target = os.path.abspath(out)
+    found = []
+    for proc in psutil.process_iter(["cmdline"]):
+        cmd = proc.info.get("cmdline") or []
+        if not cmd or Path(cmd[0]).name != "magbed":
+            continue
+        dirs = [cmd[i + 1] for i, a in enumerate(cmd[:-1]) if a in ("--out", "--resume")]
+        if any(os.path.abspath(d) == target for d in dirs):
+            found.append(proc)
+    return found
+
+
+def _wait_for_engines(out: Path) -> bool:
+    """Wait until no engine writes into ``out``; True if one was running here.
+
+    An engine on this host is found by its command line. One on another host
+    (a Slurm job being cancelled writes its checkpoint and final run.json on
+    SIGTERM) is given STALE_GRACE_S seconds after the last run.json update.
+    """
+    procs = _live_engines(out)
+    if procs:
+        import psutil
+
+        psutil.wait_procs(procs)
+        return True
+    try:
+        age = time.time() - (out / "run.json").stat().st_mtime
+    except OSError:
+        return False
+    if 0 <= age < STALE_GRACE_S:
+        time.sleep(STALE_GRACE_S - age)
+    return False
+
+
+def _remove_stale(out: Path) -> None:
+    """Delete an interrupted/failed run directory (refuses anything else)."""
+    if not out.exists():
+        return
+    if not (out / "run.json").exists() and not (out / "scene.nml").exists() and any(out.iterdir()):
+        raise RunError(f"{out}: exists and is not a run directory; refusing to delete it")
+    shutil.rmtree(out)
+
+
+def _can_resume(out: Path) -> bool:
+    """pyorch.run.resume exists and ``out`` holds a checkpoint.bin."""
+    from pyorch import run as prun
+
+    return hasattr(prun, "resume") and (out / "checkpoint.bin").is_file()
+
+
+def _launch(base_path: Path, overrides: Mapping[str, Any], out: Path, action: str) -> None:
+    """Resume ("resumed") or run the point afresh ("ran", "reran"). Raises Scene/RunError."""
+    from pyorch import run as prun
+
+    if action == "resumed":
+        kwargs: dict[str, Any] = {"progress": False}
+        if "threads" in inspect.signature(prun.resume).parameters:
+            kwargs["threads"] = 1
+        prun.resume(out, **kwargs)
+        return
+    _remove_stale(out)
+    prun.run(base_path, out, overrides=dict(overrides), door="exe", progress=False, threads=1)
+
+
+def _status_row(out: Path) -> dict[str, Any]:
+    """status, message, wall time and steps from run.json (failed if there is none)."""
+    meta = _read_status(out) or {}
+    return {"status": meta.get("status", "failed: no run.json"),
+            "message": meta.get("message", ""),
+            "wall_time_s": float(meta.get("wall_time_s", math.nan)),
+            "steps_done": meta.get("steps_done", math.nan)}
+
+
+def _strip_path(message: str) -> str:
+    """Drop the temporary namelist path (written by pyorch.run) in front of an engine message."""
+    m = re.match(r"^(\S+\.nml): ", message)
+    if m and Path(m[1]).parent.parent == Path(tempfile.gettempdir()):
+        return message[m.end():]
+    return message
+
+
+def _execute(base_path: Path, overrides: Mapping[str, Any], out: Path) -> dict[str, Any]:
+    """Skip, wait, resume or run the point; returns action/status/message (may raise)."""
+    waited = False
+    meta = _read_status(out)
+    if meta is not None and meta.get("status") == "running":
+        waited = _wait_for_engines(out)
+        meta = _read_status(out)
+    if meta is not None and meta.get("status") == "completed":
+        return {"action": "waited" if waited else "skipped", **_status_row(out)}
+    resumable = str((meta or {}).get("status", "")).startswith(RESUMABLE)
+    action = "resumed" if resumable and _can_resume(out) else "reran" if out.exists() else "ran"
+    try:
+        _launch(base_path, overrides, out, action)
+    except SceneError as exc:
+        return {"action": "refused", "status": "refused", "message": _strip_path(str(exc))}
+    except RunError as exc:
+        row = _status_row(out)
+        if not str(row["status"]).startswith(("failed", "interrupted", "paused")):
+            row["status"] = "failed: error"  # e.g. engine killed before it could write run.json
+        return {**row, "action": action, "message": row["message"] or str(exc)}
+    return {"action": action, **_status_row(out)}
+
+
+def run_point(base_path: str | Path, overrides: Mapping[str, Any], out_dir: str | Path,
+              metrics: MetricFn | None = None) -> dict[str, Any]:
+    """Run one sweep point into ``out_dir`` (the dask task; never raises).
+
+    Skips a completed run, resumes or re-runs an interrupted one, runs the
+    engine executable (door "exe", 1 thread) otherwise, then evaluates
+    ``metrics`` (default :func:`summary_metrics`) on completed runs. Returns a
+    dict: name, dir, action (skipped|ran|reran|resumed|waited|refused|error),
+    status (completed | refused | failed: ...), message, wall_time_s [s],
+    steps_done and the metric values.
+    """
+    out = Path(os.path.abspath(out_dir))
+    row: dict[str, Any] = {"name": out.name, "dir": str(out), "action": "error", "status": "",
+                           "message": "", "wall_time_s": math.nan, "steps_done": math.nan}
+    row.update(_nan_metrics() if metrics is None else {})
+    try:
+        row.update(_execute(Path(base_path), overrides, out))
+        if row["status"] == "completed":
+            row.update(_safe_metrics(out, metrics or summary_metrics))
+    except Exception as exc:  # the task must never raise
+        row.update(status="failed: error", message=f"{type(exc).__name__}: {exc}")
+    return row
+
+
+def _safe_metrics(out: Path, metrics: MetricFn) -> dict[str, Any]:
+    """Metric values, or a message when the metric function fails."""
+    from pyorch.run import Run
+
+    try:
+        return dict(metrics(Run(out)))
+    except Exception as exc:
+        return {"message": f"metrics failed: {type(exc).__name__}: {exc}"}
+
+
+# --------------------------------------------------------------------------------------------------
+# The sweep
+# --------------------------------------------------------------------------------------------------
+def _flatten(table: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    """Nested TOML tables -> ``{"group.key": value}`` (lists are values)."""
+    flat: dict[str, Any] = {}
+    for k, v in table.items():
+        key = f"{prefix}.{k}" if prefix else str(k)
+        if isinstance(v, Mapping):
+            flat.update(_flatten(v, key))
+        else:
+            flat[key] = v
+    return flat
+
+
+def _check_keys(overrides: Mapping[str, Any], where: str) -> dict[str, Any]:
+    """Lower-case the keys and refuse anything that is not ``group.key``."""
+    from pyorch.scene import GROUPS
+
+    out = {}
+    for key, value in overrides.items():
+        k = str(key).strip().lower()
+        if "(" in k:
+            raise SceneError(f"{where}: {key!r}: array elements cannot be set; give the whole "
+                             f"array as a list, e.g. \"particles.species_diameter\" = [1.0, 0.6]")
+        if not _KEY.match(k) or k.split(".")[0] not in GROUPS:
+            raise SceneError(f"{where}: {key!r}: expected group.key with group in {', '.join(GROUPS)}")
+        out[k] = value
+    return out
+
+
+class Sweep:
+    """A base scene, a grid and/or list of override points, replicate seeds, fixed overrides.
+
+    Points are the product (points x grid x seeds); every point gets the fixed
+    overrides, then its own values, then ``particles.seed``. ``out`` is the
+    sweep directory (default ``<base dir>/out/sweeps/<base stem>``).
+    """
+
+    def __init__(self, base: str | Path, grid: Mapping[str, Sequence[Any]] | None = None,
+                 points: Iterable[Mapping[str, Any]] | None = None,
+                 seeds: Iterable[int] | None = None, fixed: Mapping[str, Any] | None = None,
+                 out: str | Path | None = None) -> None:
+        from pyorch.scene import Scene
+
+        self.base = Path(os.path.abspath(base))
+        self.scene = Scene.read(self.base)
+        self.grid = _check_keys(grid or {}, "grid")
+        for key, values in self.grid.items():
+            if isinstance(values, (str, bytes)) or not isinstance(values, Sequence) or not values:
+                raise SceneError(f"grid: {key!r}: expected a non-empty list of values")
+        self.point_specs = [_check_keys(p, f"points[{i}]") for i, p in enumerate(points or [])]
+        self.seeds = [int(s) for s in seeds] if seeds is not None else None
+        self.fixed = _check_keys(fixed or {}, "set")
+        if self.seeds is not None and (SEED_KEY in self.grid or any(SEED_KEY in p for p in self.point_specs)):
+            raise SceneError(f"{SEED_KEY} is given both in seeds and in grid/points")
+        self.out = Path(os.path.abspath(out)) if out else self.base.parent / "out" / "sweeps" / self.base.stem
+
+    @classmethod
+    def from_toml(cls, path: str | Path) -> "Sweep":
+        """Read a sweep spec (see the module docstring); paths relative to the file."""
+        path = Path(path)
+        try:
+            spec = tomllib.loads(path.read_text(encoding="utf-8"))
+        except (OSError, tomllib.TOMLDecodeError) as exc:
+            raise SceneError(f"{path}: cannot read sweep spec: {exc}") from exc
+        unknown = set(spec) - _TOML_KEYS
+        if unknown or "base" not in spec:
+            raise SceneError(f"{path}: needs 'base'; unknown keys {sorted(unknown)} "
+                             f"(allowed: {', '.join(sorted(_TOML_KEYS))})")
+        here = path.absolute().parent
+        out = here / spec["out"] if "out" in spec else None
+        sweep = cls(here / spec["base"], grid=_flatten(spec.get("grid", {})),
+                    points=[_flatten(p) for p in spec.get("points", [])], seeds=spec.get("seeds"),
+                    fixed=_flatten(spec.get("set", {})), out=out)
+        if out is None:
+            sweep.out = sweep.base.parent / "out" / "sweeps" / path.stem
+        return sweep
+
+    def label_keys(self) -> list[str]:
+        """The varying parameters (point keys, grid keys, seed) in name order."""
+        keys: list[str] = []
+        for k in [*(k for p in self.point_specs for k in p), *self.grid]:
+            if k not in keys:
+                keys.append(k)
+        if self.seeds is not None:
+            keys.append(SEED_KEY)
+        return keys
+
+    def _overrides(self) -> list[dict[str, Any]]:
+        """Full override dict of every point, in order."""
+        specs = self.point_specs or [{}]
+        combos = list(itertools.product(*self.grid.values())) if self.grid else [()]
+        seeds: list[int | None] = list(self.seeds) if self.seeds is not None else [None]
+        result = []
+        for spec, combo, seed in itertools.product(specs, combos, seeds):
+            ov = {**self.fixed, **spec, **dict(zip(self.grid, combo))}
+            if seed is not None:
+                ov[SEED_KEY] = seed
+            result.append(ov)
+        return result
+
+    def points(self) -> pd.DataFrame:
+        """One row per point: name, the varying parameters, dir, overrides (full dict)."""
+        keys = self.label_keys()
+        rows = []
+        for ov in self._overrides():
+            name = point_name(ov, keys, self.scene.groups, prefix=self.base.stem)
+            rows.append({"name": name, **{k: ov.get(k) for k in keys},
+                         "dir": str(self.out / name), "overrides": ov})
+        df = pd.DataFrame(rows, columns=["name", *keys, "dir", "overrides"])
+        dup = df["name"][df["name"].duplicated()]
+        if not dup.empty:
+            raise SceneError(f"sweep has duplicate points: {', '.join(dup.unique())}")
+        return df
+
+    def write_manifest(self) -> Path:
+        """Write ``manifest.json`` (base, spec and every point) into the sweep directory."""
+        self.out.mkdir(parents=True, exist_ok=True)
+        pts = self.points()
+        doc = {"base": str(self.base), "out": str(self.out), "grid": self.grid,
+               "points_spec": self.point_specs, "seeds": self.seeds, "fixed": self.fixed,
+               "parameters": self.label_keys(),
+               "points": [{"name": r["name"], "dir": r["dir"], "overrides": r["overrides"]}
+                          for r in pts.to_dict("records")]}
+        path = self.out / MANIFEST
+        tmp = path.with_suffix(".json.tmp")
+        tmp.write_text(json.dumps(doc, indent=1, default=str) + "\n", encoding="utf-8")
+        tmp.replace(path)
+        return path
+
+    def run(self, client: Any = None, scheduler_address: str | None = None,
+            cluster: str = "local", n_workers: int | None = None, progress: bool = True,
+            metrics: MetricFn | None = None, cluster_kwargs: Mapping[str, Any] | None = None,
+            task: TaskFn = run_point) -> pd.DataFrame:
+        """Run every point on dask.distributed and return the results table.
+
+        Uses ``client`` if given, else joins ``scheduler_address``, else starts
+        ``cluster`` ("local" | "slurm", see module docstring) with ``n_workers``
+        one-thread workers (closed afterwards). ``metrics``: picklable
+        ``Run -> dict`` (default :func:`summary_metrics`); ``task``: the task
+        function (default :func:`run_point`, same signature, must not raise).
+        Writes manifest.json first and results.csv (+ .parquet) at the end.
+        """
+        self.write_manifest()
+        pts = self.points()
+        ex = _Executor(client, scheduler_address, cluster, n_workers, cluster_kwargs, len(pts))
+        with ex as cl:
+            rows = _gather(cl, pts, self.base, task, metrics, progress, self.out.name, ex.floor)
+        return self._results(pts, rows)
+
+    def _results(self, pts: pd.DataFrame, rows: Mapping[str, dict[str, Any]]) -> pd.DataFrame:
+        """Join points and task rows in manifest order; write results files."""
+        keys = self.label_keys()
+        table = []
+        for p in pts.to_dict("records"):
+            row = rows[p["name"]]
+            extra = {k: v for k, v in row.items() if k not in ("name", "dir")}
+            table.append({"name": p["name"], **{k: p[k] for k in keys}, **extra, "dir": p["dir"]})
+        df = pd.DataFrame(table)
+        write_results(df, self.out)
+        return df
+
+
+def write_results(df: pd.DataFrame, out: Path) -> list[Path]:
+    """results.csv (always) and results.parquet (if pyarrow is importable) in ``out``."""
+    paths = [out / f"{RESULTS}.csv"]
+    df.to_csv(paths[0], index=False)
+    if importlib.util.find_spec("pyarrow") is not None:
+        try:
+            flat = df.map(lambda v: _canonical(v) if isinstance(v, (list, dict)) else v)
+            flat.to_parquet(out / f"{RESULTS}.parquet", index=False)
+            paths.append(out / f"{RESULTS}.parquet")
+        except Exception as exc:  # mixed-type columns: csv is the reference
+            print(f"pyorch sweep: results.parquet not written: {exc}", file=sys.stderr)
+    return paths
+
+
+# --------------------------------------------------------------------------------------------------
+# Execution
+# --------------------------------------------------------------------------------------------------
+def _default_workers() -> int:
+    """Usable cores of this process."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not Linux
+        return os.cpu_count() or 1
+
+
+def _slurm_workers(n_workers: int | None, n_points: int) -> int:
+    """Workers to request from Slurm (default: one per point, at most 32)."""
+    return n_workers or min(n_points, 32)
+
+
+def _make_cluster(kind: str, n_workers: int | None, kwargs: Mapping[str, Any], n_points: int) -> Any:
+    """Start a LocalCluster or a SLURMCluster (see module docstring)."""
+    if kind == "local":
+        import dask
+        from distributed import LocalCluster
+
+        opts = {"n_workers": n_workers or _default_workers(), "threads_per_worker": 1,
+                "processes": True, "env": {"OMP_NUM_THREADS": "1"},
+                "dashboard_address": ":0", **kwargs}  # free port: the link is printed
+        # one task per worker at a time: long, uneven tasks balance better
+        with dask.config.set({"distributed.scheduler.worker-saturation": 1.0}):
+            return LocalCluster(**opts)
+    if kind == "slurm":
+        from dask_jobqueue import SLURMCluster
+
+        slurm = SLURMCluster(**kwargs)
+        slurm.scale(_slurm_workers(n_workers, n_points))
+        return slurm
+    raise ValueError(f"cluster must be 'local' or 'slurm', got {kind!r}")
+
+
+class _Executor:
+    """Context manager yielding a distributed Client; closes what it created."""
+
+    def __init__(self, client: Any, address: str | None, kind: str, n_workers: int | None,
+                 cluster_kwargs: Mapping[str, Any] | None, n_points: int) -> None:
+        self.client, self.address, self.kind = client, address, kind
+        self.n_workers, self.kwargs, self.n_points = n_workers, dict(cluster_kwargs or {}), n_points
+        self._owned: list[Any] = []
+        #: workers expected but maybe not started yet (Slurm jobs in the queue)
+        self.floor = _slurm_workers(n_workers, n_points) if client is None and not address \
+            and kind == "slurm" else 0
+
+    def __enter__(self) -> Any:
+        from distributed import Client
+
+        if self.client is not None:
+            return self.client
+        if self.address:
+            client = Client(self.address)
+        else:
+            cluster = _make_cluster(self.kind, self.n_workers, self.kwargs, self.n_points)
+            self._owned.append(cluster)
+            client = Client(cluster)
+        self._owned.insert(0, client)
+        return client
+
+    def __exit__(self, *exc: Any) -> None:
+        for obj in self._owned:
+            obj.close()
+
+
+def _dashboard(client: Any) -> str | None:
+    """Dashboard URL when the dashboard is served (bokeh installed)."""
+    if importlib.util.find_spec("bokeh") is None:
+        return None
+    try:
+        return client.dashboard_link or None
+    except Exception:
+        return None
+
+
+def _slots(client: Any, floor: int) -> int:
+    """Tasks to keep in flight: the cluster's threads now (at least ``floor``, at least 1)."""
+    try:
+        threads = sum(client.nthreads().values())
+    except Exception:
+        threads = 0
+    return max(threads, floor, 1)
+
+
+def _gather(client: Any, pts: pd.DataFrame, base: Path, task: TaskFn, metrics: MetricFn | None,
+            progress: bool, desc: str, floor: int = 0) -> dict[str, dict[str, Any]]:
+    """Run one task per point, collect rows as they complete (tqdm bar).
+
+    At most one task per worker thread is in flight (``floor``: expected threads
+    of a cluster still starting up); more are submitted as points complete, so a
+    point never waits behind another on a busy worker and a dying worker takes
+    only its own point with it.
+    """
+    from distributed import as_completed
+
+    link = _dashboard(client)
+    if link:
+        print(f"dask dashboard: {link}", flush=True)
+    stamp = f"{time.time_ns():x}"
+    todo = iter(pts.to_dict("records"))
+    names: dict[Any, str] = {}
+    # with_results: each result is fetched as soon as its task ends, so a worker
+    # dying later cannot take a finished point's row with it
+    ready = as_completed(with_results=True, raise_errors=False)
+
+    def top_up() -> None:
+        while ready.count() < _slots(client, floor) and (p := next(todo, None)) is not None:
+            fut = client.submit(task, str(base), p["overrides"], p["dir"], metrics,
+                                key=f"run_point-{p['name']}-{stamp}", pure=False)
+            names[fut] = p["name"]
+            ready.add(fut)
+
+    rows: dict[str, dict[str, Any]] = {}
+    bar = _bar(len(pts), desc) if progress else None
+    top_up()
+    for fut, result in ready:
+        name = names.pop(fut)
+        rows[name] = _row_of(result, name)
+        del fut
+        top_up()
+        if bar is not None:
+            n_bad = sum(r["status"] != "completed" for r in rows.values())
+            bar.set_postfix_str(f"ok={len(rows) - n_bad} failed={n_bad}", refresh=False)
+            bar.update(1)
+    if bar is not None:
+        bar.close()
+    return rows
+
+
+def _bar(total: int, desc: str) -> Any:
+    from tqdm import tqdm
+
+    return tqdm(total=total, unit="point", desc=desc, dynamic_ncols=True)
+
+
+def _row_of(result: Any, name: str) -> dict[str, Any]:
+    """The task's row; an exception (worker died, cancelled task) becomes a failed row."""
+    if isinstance(result, dict):
+        return result
+    if isinstance(result, tuple) and len(result) == 3:  # (type, exception, traceback)
+        result = result[1]
+    reason = "worker died" if type(result).__name__ == "KilledWorker" else "task error"
+    return {"name": name, "action": "error", "status": f"failed: {reason}",
+            "message": f"{type(result).__name__}: {result}", "wall_time_s": math.nan,
+            "steps_done": math.nan}
+
+
+# --------------------------------------------------------------------------------------------------
+# Command line (wired into pyorch.cli as ``pyorch sweep``)
+# --------------------------------------------------------------------------------------------------
+def add_parser(subparsers: Any) -> argparse.ArgumentParser:
+    """Add ``sweep SPEC.toml [--scheduler ADDR] [--workers N] [--cluster local|slurm]
+    [--no-progress] [--dry-run]`` to an argparse subparsers object."""
+    p = subparsers.add_parser("sweep", help="run a parameter sweep (TOML spec) on dask")
+    p.add_argument("spec", type=Path, help="sweep spec (TOML), see runs/sweeps/README.md")
+    p.add_argument("--scheduler", default=None, metavar="ADDR",
+                   help="join a running dask scheduler, e.g. tcp://host:8786")
+    p.add_argument("--workers", type=int, default=None, metavar="N",
+                   help="workers to start (default: usable cores; slurm: min(points, 32))")
+    p.add_argument("--cluster", choices=["local", "slurm"], default="local")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--dry-run", action="store_true", help="write the manifest and list the points")
+    p.set_defaults(func=cmd_sweep)
+    return p
+
+
+def cmd_sweep(args: argparse.Namespace) -> int:
+    """Run ``pyorch sweep``: 0 if every point completed, 3 if some failed, 2 on a bad spec."""
+    try:
+        sweep = Sweep.from_toml(args.spec)
+        if getattr(args, "dry_run", False):
+            print(f"{sweep.write_manifest()}")
+            print(sweep.points().drop(columns=["overrides", "dir"]).to_string(index=False))
+            return 0
+        df = sweep.run(scheduler_address=args.scheduler, cluster=args.cluster,
+                       n_workers=args.workers, progress=not args.no_progress)
+    except SceneError as exc:
+        print(f"pyorch: error: {exc}", file=sys.stderr)
+        return 2
+    bad = df[df["status"] != "completed"]
+    print(f"{sweep.out}: {len(df) - len(bad)}/{len(df)} points completed; "
+          f"results in {sweep.out / (RESULTS + '.csv')}")
+    for r in bad.itertuples():
+        print(f"  {r.name}: {r.status}: {r.message}", file=sys.stderr)
+    return 3 if len(bad) else 0
