@@ -40,7 +40,6 @@ from pyorch import io
 from pyorch.run import Run, run
 from pyorch.scene import Scene
 
-ROOT = Path(__file__).resolve().parents[1]
 KNOBS = ["neighbour", "r_cut", "skin", "truncation", "tail", "dt", "integrator"]
 BASELINE: dict[str, Any] = {"neighbour": "verlet", "r_cut": 7.13, "skin": 1.0,
                             "truncation": "plain", "tail": "none", "dt": 2.0e-3,
@@ -264,16 +263,24 @@ def overrides_for(row: pd.Series) -> dict[str, Any]:
     return out
 
 
-DEFAULT_TABLE = ROOT / "bench" / "results" / "trade.csv"
+PACKAGED_TABLE = Path(__file__).resolve().parent / "data" / "trade.csv"
 
 
-def apply_target(scene: Scene, table_path: Path = DEFAULT_TABLE) -> tuple[Scene, str | None]:
+def default_table() -> Path:
+    """The trade table measured here (bench/results/trade.csv under the working
+    directory) if present, else the one shipped with the package."""
+    local = Path.cwd() / "bench" / "results" / "trade.csv"
+    return local if local.is_file() else PACKAGED_TABLE
+
+
+def apply_target(scene: Scene, table_path: Path | None = None) -> tuple[Scene, str | None]:
     """If the scene asks for target_rel_error, return it with the cheapest measured
     setting applied and a one-line description of the choice."""
     target = float(scene.get("integration", "target_rel_error", 0.0) or 0.0)
     if target <= 0:
         return scene, None
-    if not Path(table_path).is_file():
+    table_path = Path(table_path) if table_path else default_table()
+    if not table_path.is_file():
         raise FileNotFoundError(f"target_rel_error = {target:g} needs the measured table "
                                 f"{table_path} (run: pyorch bench trade)")
     row = choose(pd.read_csv(table_path), target)

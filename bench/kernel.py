@@ -1,0 +1,70 @@
+"""Pair-kernel throughput: pair evaluations per second of the force pass
+alone (pair loop + list upkeep, no walls/friction/integration), on one and two
+threads, for the standard bed scaled as thesis §3.5.
+
+Reproduce (from the repository root, about 1 minute):
+
+    .venv/bin/python bench/kernel.py        # writes bench/results/kernel.csv
+
+"Pairs" are the pairs the kernel is called for: all N(N-1)/2 pairs, or every
+pair in the Verlet list (within r_c + skin; those beyond r_c are masked).
+"""
+from __future__ import annotations
+
+import math
+import tempfile
+from pathlib import Path
+
+import pandas as pd
+
+from pyorch import _engine
+from pyorch.scene import Scene
+
+ROOT = Path(__file__).resolve().parents[1]
+CASES = [(368, "all_pairs", 7.13), (368, "verlet", 7.13), (5888, "all_pairs", 7.13),
+         (10000, "verlet", 7.13), (100000, "verlet", 7.13), (100000, "verlet", 3.0)]
+
+
+def scene_for(n: int, strategy: str, r_cut: float) -> Scene:
+    s = math.sqrt(n / 368)
+    # the bed near maximum compression (phi ~ 0.34): particles on a grid 14 x sqrt(a) high
+    return Scene.read(ROOT / "runs/standard.nml").with_overrides({
+        "particles.n": n, "cell.width": 60 * s, "cell.height": 75 * s,
+        "protocol.h_start": 75 * s, "protocol.h0": 75 * s, "protocol.hf": 14 * s,
+        "particles.fill_height": 16 * s, "integration.neighbour": strategy,
+        "integration.r_cut": r_cut, "integration.skin": 1.0})
+
+
+def measure(n: int, strategy: str, r_cut: float, threads: int) -> dict:
+    api = _engine.api
+    with tempfile.TemporaryDirectory() as tmp:
+        path = scene_for(n, strategy, r_cut).write(Path(tmp) / "k.nml")
+        code, msg = api.load_scene(str(path))
+        assert code == 0, msg
+    api.set_threads(threads)
+    reps = max(3, int(3e7 // max(1, n * (n if strategy == "all_pairs" else 60))))
+    best = math.inf
+    pairs = 0
+    for _ in range(3):
+        sec, pairs = api.bench_pairs(reps)
+        best = min(best, sec / reps)
+    return {"n": n, "strategy": strategy, "r_cut": r_cut, "threads": threads,
+            "pairs_per_pass": pairs, "s_per_pass": best, "pairs_per_s": pairs / best}
+
+
+def main() -> int:
+    rows = [measure(n, s, rc, th) for n, s, rc in CASES for th in (1, 2)]
+    df = pd.DataFrame(rows)
+    one = df[df["threads"] == 1].set_index(["n", "strategy", "r_cut"])["s_per_pass"]
+    two = df[df["threads"] == 2].set_index(["n", "strategy", "r_cut"])["s_per_pass"]
+    df["speedup_2_threads"] = df.apply(
+        lambda r: one[(r.n, r.strategy, r.r_cut)] / two[(r.n, r.strategy, r.r_cut)], axis=1)
+    out = ROOT / "bench/results/kernel.csv"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    df.to_csv(out, index=False)
+    print(df.to_string(index=False))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
