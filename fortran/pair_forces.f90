@@ -87,7 +87,10 @@ contains
     real(dp), intent(inout) :: fx(n), fy(n), s3(n)
     real(dp), intent(inout) :: r2low   !< running minimum of r^2
     integer :: i, j
-    real(dp) :: xi, yi, ci, dx, dy, r2, s5, r3, c, fxi, fyi, s3i, wi, keep
+    real(dp) :: xi, yi, ci, dx, dy, r2, s5, r3, c, fxi, fyi, s3i, wi, keep, low
+    ! the running minimum lives in a local: a dummy argument in the inner loop
+    ! would alias the force arrays (no vectorisation) and false-share between threads
+    low = r2low
     do i = i_lo, i_hi
       xi = x(i); yi = y(i)
       ci = k_pair*mu(i)
@@ -97,7 +100,7 @@ contains
         dx = xi - x(j)
         dy = yi - y(j)
         r2 = dx*dx + dy*dy
-        r2low = min(r2low, r2)
+        low = min(low, r2)
         keep = merge(1.0_dp, 0.0_dp, r2 >= r2_min)
         call dipole_kernel(r2, 0.0_dp, s5, r3)
         c = keep*ci*mu(j)*s5
@@ -115,6 +118,7 @@ contains
       fy(i) = fy(i) + fyi
       if (with_r3) s3(i) = s3(i) + s3i
     end do
+    r2low = low
   end subroutine rows_all
 
   !> Rows i_lo..i_hi of a half neighbour list. Two passes per chunk: gather
@@ -129,8 +133,9 @@ contains
     real(dp), intent(inout) :: r2low   !< running minimum of r^2
     integer, parameter :: chunk = 256
     integer :: i, j, m, k0, nk
-    real(dp) :: xi, yi, ci, wi, fxi, fyi, s3i, r2, keep
+    real(dp) :: xi, yi, ci, wi, fxi, fyi, s3i, r2, keep, low
     real(dp) :: dxs(chunk), dys(chunk), cs(chunk), r3s(chunk)
+    low = r2low   ! local running minimum (see rows_all)
     do i = i_lo, i_hi
       xi = x(i); yi = y(i)
       ci = k_pair*mu(i)
@@ -143,7 +148,7 @@ contains
           dxs(m) = xi - x(j)
           dys(m) = yi - y(j)
           r2 = dxs(m)*dxs(m) + dys(m)*dys(m)
-          r2low = min(r2low, r2)
+          low = min(low, r2)
           keep = 1
           if (check) keep = merge(1.0_dp, 0.0_dp, r2 < rc2)
           call dipole_kernel(r2, shift4, cs(m), r3s(m))
@@ -169,6 +174,7 @@ contains
       fy(i) = fy(i) + fyi
       if (with_r3) s3(i) = s3(i) + s3i
     end do
+    r2low = low
   end subroutine rows_list
 
   !> Run the rows on the OpenMP threads, deterministically: thread t takes a

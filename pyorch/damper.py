@@ -1151,3 +1151,27 @@ def plot_phase(
     ax.legend(fontsize=8)
     return fig
 
+
+
+def sweep_metrics(run: Any) -> dict[str, float]:
+    """Per-point metrics of a damper run for ``pyorch.sweep`` (TOML
+    ``metrics = "pyorch.damper:sweep_metrics"``): rest height before the nudge
+    [D1], oscillation amplitude after it [D1], damping ratio, damped angular
+    frequency [1/T] and peak count from the log decrement of the free phase.
+    NaN where the record has too few peaks."""
+    from pyorch import io as _io
+
+    out = {"H_rest": np.nan, "amplitude": np.nan, "zeta": np.nan, "omega_d": np.nan,
+           "n_peaks": np.nan}
+    pis = _io.piston(run.dir)
+    fall, free = pis[pis["phase"] == 6], pis[pis["phase"] == 7]
+    if fall.empty or free.empty:
+        return out
+    out["H_rest"] = float(fall["H"].iloc[-1])
+    out["amplitude"] = float(free["H"].max() - free["H"].min()) / 2
+    try:
+        ld = log_decrement(free["t"].to_numpy(float), free["H"].to_numpy(float))
+        out.update(zeta=float(ld.zeta), omega_d=float(ld.omega_d), n_peaks=float(ld.n_peaks))
+    except ValueError:
+        pass
+    return out

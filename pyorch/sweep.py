@@ -99,7 +99,20 @@ RESULTS = "results"
 STALE_GRACE_S = 30.0  # s: a 'running' run.json younger than this may belong to a dying engine
 RESUMABLE = ("running", "interrupted", "paused")  # run.json statuses a checkpoint can continue
 METRIC_KEYS = ("F_max", "H_at_F_max", "D_hat", "n5", "n6", "n7", "Psi6")
-_TOML_KEYS = {"base", "out", "seeds", "grid", "set", "points", "description"}
+_TOML_KEYS = {"base", "out", "seeds", "grid", "set", "points", "description", "metrics"}
+
+
+def resolve_metrics(spec: str) -> MetricFn:
+    """``"package.module:function"`` -> the function (a sweep's metrics)."""
+    import importlib
+
+    module, _, name = spec.partition(":")
+    if not module or not name:
+        raise SceneError(f"metrics = {spec!r}: expected 'package.module:function'")
+    try:
+        return getattr(importlib.import_module(module), name)
+    except (ImportError, AttributeError) as exc:
+        raise SceneError(f"metrics = {spec!r}: {exc}") from exc
 _KEY = re.compile(r"^[a-z_][a-z0-9_]*\.[a-z_][a-z0-9_]*$")
 _UNSAFE = re.compile(r"[^A-Za-z0-9._+=,-]+")
 _NAME_MAX = 100  # characters of the readable part of a point name
@@ -413,6 +426,7 @@ class Sweep:
         if self.seeds is not None and (SEED_KEY in self.grid or any(SEED_KEY in p for p in self.point_specs)):
             raise SceneError(f"{SEED_KEY} is given both in seeds and in grid/points")
         self.out = Path(os.path.abspath(out)) if out else self.base.parent / "out" / "sweeps" / self.base.stem
+        self.metrics: MetricFn | None = None   # default summary_metrics; TOML key 'metrics'
 
     @classmethod
     def from_toml(cls, path: str | Path) -> "Sweep":
@@ -433,6 +447,8 @@ class Sweep:
                     fixed=_flatten(spec.get("set", {})), out=out)
         if out is None:
             sweep.out = sweep.base.parent / "out" / "sweeps" / path.stem
+        if "metrics" in spec:
+            sweep.metrics = resolve_metrics(spec["metrics"])
         return sweep
 
     def label_keys(self) -> list[str]:
@@ -502,6 +518,7 @@ class Sweep:
         """
         self.write_manifest()
         pts = self.points()
+        metrics = metrics or self.metrics
         ex = _Executor(client, scheduler_address, cluster, n_workers, cluster_kwargs, len(pts))
         with ex as cl:
             rows = _gather(cl, pts, self.base, task, metrics, progress, self.out.name, ex.floor)
