@@ -37,6 +37,7 @@ contains
     real(dp), intent(inout) :: fx(n), fy(n)
     integer :: i
     real(dp) :: fn, ft, v, c
+    !$omp parallel do if (n >= 20000) schedule(static) default(shared) private(i, fn, ft, v, c)
     do i = 1, n
       fn = nfac(i)*s3(i)
       ft = sqrt(fx(i)**2 + fy(i)**2)
@@ -50,6 +51,7 @@ contains
         fy(i) = fy(i) - c*vy(i)
       end if
     end do
+    !$omp end parallel do
   end subroutine dry_friction
 
 end module friction

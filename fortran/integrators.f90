@@ -63,12 +63,14 @@ contains
     select case (method)
     case (int_stormer_verlet)
       if (s%has_previous) then
+        !$omp parallel do if (s%n >= 20000) schedule(static) private(i, xn, yn)
         do i = 1, s%n
           xn = 2*s%x(i) - s%xp(i) + h*h*s%fx(i)/s%mass(i)
           yn = 2*s%y(i) - s%yp(i) + h*h*s%fy(i)/s%mass(i)
           s%xp(i) = s%x(i); s%yp(i) = s%y(i)
           s%x(i) = xn; s%y(i) = yn
         end do
+        !$omp end parallel do
       else
         do i = 1, s%n
           s%xp(i) = s%x(i); s%yp(i) = s%y(i)
@@ -77,6 +79,7 @@ contains
         end do
       end if
     case (int_velocity_verlet)
+      !$omp parallel do if (s%n >= 20000) schedule(static) private(i, ax, ay)
       do i = 1, s%n
         ax = s%fx(i)/s%mass(i); ay = s%fy(i)/s%mass(i)
         if (s%has_previous) then
@@ -89,6 +92,7 @@ contains
         s%x(i) = s%x(i) + h*s%xp(i)
         s%y(i) = s%y(i) + h*s%yp(i)
       end do
+      !$omp end parallel do
     case (int_euler)
       do i = 1, s%n
         s%x(i) = s%x(i) + h*s%vx(i)

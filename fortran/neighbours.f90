@@ -74,9 +74,11 @@ contains
     end if
     lim2 = (0.5_dp*nl%skin)**2
     d2max = 0
+    !$omp parallel do if (n >= 20000) schedule(static) reduction(max: d2max)
     do i = 1, n
       d2max = max(d2max, (x(i) - nl%xref(i))**2 + (y(i) - nl%yref(i))**2)
     end do
+    !$omp end parallel do
     due = d2max > lim2
   end function nlist_due
 

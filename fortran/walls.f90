@@ -14,6 +14,8 @@ module walls
 
   public :: wall_forces, wall_push, wall_energy
 
+  integer, parameter :: par_min = 20000   !< particles below which O(N) loops stay serial
+
 contains
 
   !> Magnitude of the push of one wall at distance l, for a particle at
@@ -56,17 +58,21 @@ contains
     real(dp), intent(inout) :: fx(n), fy(n)
     real(dp), intent(out) :: f_piston
     integer, intent(out) :: outside
-    integer :: i
-    real(dp) :: top, fp, xi, yi
-    outside = 0
-    f_piston = 0
+    integer :: i, first_bad
+    real(dp) :: top, xi, yi
+    real(dp), allocatable :: fp(:)   !< push of the piston on each particle
+    allocate(fp(n))
     top = height
     if (with_piston) top = h
+    first_bad = huge(1)
+    !$omp parallel do if (n >= par_min) schedule(static) default(shared) private(i, xi, yi) &
+    !$omp reduction(min: first_bad)
     do i = 1, n
       xi = x(i); yi = y(i)
+      fp(i) = 0
       ! written so that NaN fails the test too
       if (.not. (xi > 0 .and. xi < width .and. yi > 0 .and. yi < top)) then
-        if (outside == 0) outside = i
+        first_bad = min(first_bad, i)
         cycle
       end if
       if (law /= 0) then
@@ -74,12 +80,15 @@ contains
              - wall_push(law, k, width - xi, yi, height))
         fy(i) = fy(i) + mu(i)*wall_push(law, k, yi, xi, width)
         if (with_piston) then
-          fp = mu(i)*wall_push(law, k, h - yi, xi, width)
-          fy(i) = fy(i) - fp
-          f_piston = f_piston + fp
+          fp(i) = mu(i)*wall_push(law, k, h - yi, xi, width)
+          fy(i) = fy(i) - fp(i)
         end if
       end if
     end do
+    !$omp end parallel do
+    outside = 0
+    if (first_bad /= huge(1)) outside = first_bad
+    f_piston = sum(fp)   ! serial sum: the same bits for any thread count
   end subroutine wall_forces
 
   !> Wall potential energy [m1 g D1] for the laws that have one
