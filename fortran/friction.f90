@@ -37,7 +37,7 @@ contains
     real(dp), intent(inout) :: fx(n), fy(n)
     integer :: i
     real(dp) :: fn, ft, v, c
-    !$omp parallel do if (n >= 20000) schedule(static) default(shared) private(i, fn, ft, v, c)
+    !$omp parallel do if (n >= 4000) schedule(static) default(shared) private(i, fn, ft, v, c)
     do i = 1, n
       fn = nfac(i)*s3(i)
       ft = sqrt(fx(i)**2 + fy(i)**2)

@@ -63,7 +63,7 @@ contains
     select case (method)
     case (int_stormer_verlet)
       if (s%has_previous) then
-        !$omp parallel do if (s%n >= 20000) schedule(static) private(i, xn, yn)
+        !$omp parallel do if (s%n >= 4000) schedule(static) private(i, xn, yn)
         do i = 1, s%n
           xn = 2*s%x(i) - s%xp(i) + h*h*s%fx(i)/s%mass(i)
           yn = 2*s%y(i) - s%yp(i) + h*h*s%fy(i)/s%mass(i)
@@ -79,7 +79,7 @@ contains
         end do
       end if
     case (int_velocity_verlet)
-      !$omp parallel do if (s%n >= 20000) schedule(static) private(i, ax, ay)
+      !$omp parallel do if (s%n >= 4000) schedule(static) private(i, ax, ay)
       do i = 1, s%n
         ax = s%fx(i)/s%mass(i); ay = s%fy(i)/s%mass(i)
         if (s%has_previous) then

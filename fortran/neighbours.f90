@@ -74,7 +74,7 @@ contains
     end if
     lim2 = (0.5_dp*nl%skin)**2
     d2max = 0
-    !$omp parallel do if (n >= 20000) schedule(static) reduction(max: d2max)
+    !$omp parallel do if (n >= 4000) schedule(static) reduction(max: d2max)
     do i = 1, n
       d2max = max(d2max, (x(i) - nl%xref(i))**2 + (y(i) - nl%yref(i))**2)
     end do
@@ -118,48 +118,71 @@ contains
   end subroutine nlist_bin
 
   !> Build the half list (pairs i < j within rlist) from the cell grid.
-  !> Assumes nlist_bin was called for the current positions.
+  !> Assumes nlist_bin was called for the current positions. Two passes over
+  !> the particles (count, then fill at the prefix-summed offsets), both
+  !> parallel above 4000 particles; the list is the same for any thread count.
   subroutine nlist_build(nl, n, x, y)
     type(nlist_t), intent(inout) :: nl
     integer, intent(in) :: n
     real(dp), intent(in) :: x(n), y(n)
-    integer :: i, j, k, c, ix, iy, jx, jy, cnt, pass
-    real(dp) :: rl2, dx, dy
-    rl2 = nl%rlist**2
-    do pass = 1, 2
-      cnt = 0
-      do i = 1, n
-        if (pass == 2) nl%start(i) = cnt + 1
-        c = cell_index(nl, x(i), y(i)) - 1
-        ix = mod(c, nl%ncx)
-        iy = c/nl%ncx
-        do jy = max(0, iy - 1), min(nl%ncy - 1, iy + 1)
-          do jx = max(0, ix - 1), min(nl%ncx - 1, ix + 1)
-            c = 1 + jx + nl%ncx*jy
-            do k = nl%cell_start(c), nl%cell_start(c + 1) - 1
-              j = nl%cell_part(k)
-              if (j <= i) cycle
-              dx = x(i) - x(j)
-              dy = y(i) - y(j)
-              if (dx*dx + dy*dy < rl2) then
-                cnt = cnt + 1
-                if (pass == 2) nl%nbr(cnt) = j
-              end if
-            end do
-          end do
-        end do
-      end do
-      if (pass == 1 .and. cnt > size(nl%nbr)) then
-        deallocate(nl%nbr)
-        allocate(nl%nbr(cnt + cnt/4 + 16))
-      end if
+    integer :: i, total, dummy
+    integer, allocatable :: cnt(:)
+    allocate(cnt(n))
+    !$omp parallel do if (n >= 4000) schedule(static) private(i, dummy)
+    do i = 1, n
+      call scan_row(i, .false., cnt(i), dummy)
     end do
-    nl%start(n + 1) = cnt + 1
-    nl%pairs = cnt
+    !$omp end parallel do
+    nl%start(1) = 1
+    do i = 1, n
+      nl%start(i + 1) = nl%start(i) + cnt(i)
+    end do
+    total = nl%start(n + 1) - 1
+    if (total > size(nl%nbr)) then
+      deallocate(nl%nbr)
+      allocate(nl%nbr(total + total/4 + 16))
+    end if
+    !$omp parallel do if (n >= 4000) schedule(static) private(i, dummy)
+    do i = 1, n
+      call scan_row(i, .true., dummy, nl%start(i))
+    end do
+    !$omp end parallel do
+    nl%pairs = total
     nl%xref = x
     nl%yref = y
     nl%valid = .true.
     nl%builds = nl%builds + 1
+  contains
+    !> Neighbours j > i of particle i within rlist: count them, or write them
+    !> to nbr from position at.
+    subroutine scan_row(i, fill, count, at)
+      integer, intent(in) :: i
+      logical, intent(in) :: fill
+      integer, intent(out) :: count
+      integer, intent(in) :: at
+      integer :: c, ix, iy, jx, jy, k, j
+      real(dp) :: rl2, dx, dy
+      rl2 = nl%rlist**2
+      count = 0
+      c = cell_index(nl, x(i), y(i)) - 1
+      ix = mod(c, nl%ncx)
+      iy = c/nl%ncx
+      do jy = max(0, iy - 1), min(nl%ncy - 1, iy + 1)
+        do jx = max(0, ix - 1), min(nl%ncx - 1, ix + 1)
+          c = 1 + jx + nl%ncx*jy
+          do k = nl%cell_start(c), nl%cell_start(c + 1) - 1
+            j = nl%cell_part(k)
+            if (j <= i) cycle
+            dx = x(i) - x(j)
+            dy = y(i) - y(j)
+            if (dx*dx + dy*dy < rl2) then
+              if (fill) nl%nbr(at + count) = j
+              count = count + 1
+            end if
+          end do
+        end do
+      end do
+    end subroutine scan_row
   end subroutine nlist_build
 
 end module neighbours

@@ -14,7 +14,7 @@ module walls
 
   public :: wall_forces, wall_push, wall_energy
 
-  integer, parameter :: par_min = 20000   !< particles below which O(N) loops stay serial
+  integer, parameter :: par_min = 4000    !< particles below which O(N) loops stay serial
 
 contains
 
