@@ -8,6 +8,7 @@ module checkpoint
   use errors, only: status_t, set_error, exit_io
   use state, only: state_t
   use neighbours, only: nlist_t
+  use output, only: rename_into_place
   implicit none
   private
 
@@ -17,10 +18,6 @@ module checkpoint
   integer, parameter :: version = 3
 
   interface
-    integer(c_int) function c_rename(old, new) bind(C, name='rename')
-      import :: c_int, c_char
-      character(kind=c_char), intent(in) :: old(*), new(*)
-    end function c_rename
     integer(c_int) function c_truncate(path, length) bind(C, name='truncate')
       import :: c_int, c_char, c_long
       character(kind=c_char), intent(in) :: path(*)
@@ -64,8 +61,7 @@ contains
     write(u) allocated(pst%y)
     if (allocated(pst%y)) write(u) pst%y, pst%yp, pst%vy, pst%fy, pst%has_previous
     close(u)
-    if (c_rename(tmp//c_null_char, trim(path)//c_null_char) /= 0) &
-         call set_error(st, exit_io, trim(path)//': cannot rename checkpoint into place')
+    call rename_into_place(tmp, trim(path), st)
   end subroutine checkpoint_write
 
   subroutine checkpoint_read(path, s, nl, sizes, wall, pst, st)

@@ -12,7 +12,7 @@ module output
 
   public :: output_t, output_open, output_close, write_piston, write_frame, &
        write_distance, write_energy, write_run_json, make_dir, output_flush, output_sizes, &
-       output_names
+       output_names, rename_into_place
 
   type :: output_t
     character(len=:), allocatable :: dir
@@ -219,8 +219,7 @@ contains
     write(u, '(a)') '  }'
     write(u, '(a)') '}'
     close(u)
-    if (c_rename(tmp//c_null_char, final//c_null_char) /= 0) &
-         call set_error(st, exit_io, final//': cannot rename run metadata into place')
+    call rename_into_place(tmp, final, st)
   contains
     function esc(s) result(r)
       character(len=*), intent(in) :: s
@@ -241,6 +240,14 @@ contains
       end do
     end function esc
   end subroutine write_run_json
+
+  !> Atomic replacement of `final` by the complete file `tmp` (POSIX rename).
+  subroutine rename_into_place(tmp, final, st)
+    character(len=*), intent(in) :: tmp, final
+    type(status_t), intent(inout) :: st
+    if (c_rename(tmp//c_null_char, final//c_null_char) /= 0) &
+         call set_error(st, exit_io, final//': cannot rename into place')
+  end subroutine rename_into_place
 
   integer function n_threads()
     !$ use omp_lib, only: omp_get_max_threads
