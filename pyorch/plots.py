@@ -68,15 +68,16 @@ def snapshot(frame: pd.DataFrame, width: float, height: float, piston_h: float |
              diameters: dict[int, float] | None = None, colour_by: str = "fmag") -> Figure:
     """Particles drawn to scale in the cell, coloured by a column (default |F_magnetic|)."""
     diameters = diameters or {1: 1.0}
-    fig, ax = plt.subplots(figsize=(5, 5 * min(height, 3 * width) / width))
+    top = height if piston_h is None or not np.isfinite(piston_h) else min(height, piston_h)
+    aspect = (top + 2) / (width + 2)
+    fig, ax = plt.subplots(figsize=(7, float(np.clip(7 * aspect, 2.5, 9)) + 1.0))
     radii = frame["species"].map(lambda s: 0.5 * diameters.get(int(s), 1.0)).to_numpy()
     patches = [Circle((x, y), r) for x, y, r in zip(frame["x"], frame["y"], radii)]
     coll = PatchCollection(patches, cmap="viridis", edgecolor="none")
     coll.set_array(frame[colour_by].to_numpy())
     ax.add_collection(coll)
     fig.colorbar(coll, ax=ax, label=f"{colour_by} [$m_1 g$]" if colour_by.startswith("f") else colour_by,
-                 shrink=0.8)
-    top = height if piston_h is None or not np.isfinite(piston_h) else min(height, piston_h)
+                 shrink=0.8, orientation="horizontal" if aspect < 0.6 else "vertical")
     ax.plot([0, 0, width, width], [top, 0, 0, top], color="k", lw=1.5)
     if piston_h is not None and np.isfinite(piston_h) and piston_h <= height:
         ax.plot([0, width], [piston_h, piston_h], color="tab:red", lw=3)
