@@ -118,9 +118,13 @@ contains
     character(len=800) :: buf
     real(dp) :: r2min, d2
     associate (s => sim%s, m => sim%m)
-      s%fx = 0
-      s%fy = 0
-      if (m%dry_order > 0) s%s3 = 0
+      !$omp parallel do if (s%n >= 4000) schedule(static)
+      do i = 1, s%n
+        s%fx(i) = 0
+        s%fy(i) = 0
+        s%s3(i) = 0
+      end do
+      !$omp end parallel do
       if (m%pair_law == law_dipole) then
         call pair_pass(sim, r2min)
         if (r2min < sim%sc%min_distance**2) then

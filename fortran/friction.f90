@@ -15,7 +15,12 @@ contains
     integer, intent(in) :: n
     real(dp), intent(in) :: mass(n), big_g
     real(dp), intent(inout) :: fy(n)
-    fy = fy - big_g*mass
+    integer :: i
+    !$omp parallel do if (n >= 4000) schedule(static)
+    do i = 1, n
+      fy(i) = fy(i) - big_g*mass(i)
+    end do
+    !$omp end parallel do
   end subroutine gravity_force
 
   !> Viscous drag -gamma m_i v_i (thesis eq. 4.4 with D_i = alpha gamma T/m1).

@@ -26,14 +26,23 @@ contains
     integer, intent(in) :: method
     real(dp), intent(in) :: h
     type(state_t), intent(inout) :: s
+    integer :: i
     if (.not. s%has_previous) return       ! v_0 is in vx, vy
     select case (method)
     case (int_stormer_verlet)
-      s%vx = (s%x - s%xp)/h + 0.5_dp*h*s%fx/s%mass
-      s%vy = (s%y - s%yp)/h + 0.5_dp*h*s%fy/s%mass
+      !$omp parallel do if (s%n >= 4000) schedule(static)
+      do i = 1, s%n
+        s%vx(i) = (s%x(i) - s%xp(i))/h + 0.5_dp*h*s%fx(i)/s%mass(i)
+        s%vy(i) = (s%y(i) - s%yp(i))/h + 0.5_dp*h*s%fy(i)/s%mass(i)
+      end do
+      !$omp end parallel do
     case (int_velocity_verlet)
-      s%vx = s%xp + 0.5_dp*h*s%fx/s%mass   ! xp, yp hold v_{n-1/2} for this method
-      s%vy = s%yp + 0.5_dp*h*s%fy/s%mass
+      !$omp parallel do if (s%n >= 4000) schedule(static)
+      do i = 1, s%n
+        s%vx(i) = s%xp(i) + 0.5_dp*h*s%fx(i)/s%mass(i)   ! xp, yp hold v_{n-1/2} here
+        s%vy(i) = s%yp(i) + 0.5_dp*h*s%fy(i)/s%mass(i)
+      end do
+      !$omp end parallel do
     end select
   end subroutine estimate_velocity
 
