@@ -11,7 +11,6 @@ the per-step overhead of the engine, not the force cost).
 """
 from __future__ import annotations
 
-import sys
 import tempfile
 import time
 from pathlib import Path

@@ -120,13 +120,11 @@ def _join_nearest(left: pd.DataFrame, right: pd.DataFrame, cols: list[str]) -> p
     return pd.merge_asof(left.sort_values("step"), r, on="step", direction="nearest")
 
 
-def magnetic_force_vectors(run_dir: str | Path, frame: pd.DataFrame, piston_h: float,
-                           rtol: float = 1e-6) -> pd.DataFrame | None:
+def magnetic_force_vectors(frame: pd.DataFrame) -> pd.DataFrame | None:
     """Magnetic force components (pair + walls + piston) of one frame [m1 g].
 
     The engine writes them to particles.dat (columns ``fmx``, ``fmy``; ``fmag`` is
     their norm). Runs written before those columns existed return None.
-    ``run_dir``, ``piston_h`` and ``rtol`` are kept for API compatibility.
 
     Returns
     -------
@@ -154,7 +152,7 @@ def _summary_piston(pis: pd.DataFrame | None, md: pd.DataFrame | None) -> dict[s
     return out
 
 
-def _forces_at(run_dir: Path, frame: pd.DataFrame, h: float, diameters: dict[int, float],
+def _forces_at(frame: pd.DataFrame, diameters: dict[int, float],
                comp_frames: pd.DataFrame, vectors: bool) -> tuple[pd.DataFrame, pd.DataFrame, pd.DataFrame]:
     """forces, force_histogram and force_species tables of one frame (see module doc)."""
     f = frame.copy()
@@ -164,7 +162,7 @@ def _forces_at(run_dir: Path, frame: pd.DataFrame, h: float, diameters: dict[int
     f["F_norm_species"] = fm / f.groupby("species")["fmag"].transform("max").to_numpy(float)
     magnetic = f.assign(fx=fm, fy=0.0)
     f["fluctuation"] = analysis.force_fluctuations(magnetic, mask="interior")["fluctuation"].to_numpy()
-    vec = magnetic_force_vectors(run_dir, f, h) if vectors else None
+    vec = magnetic_force_vectors(f) if vectors else None
     if vec is None:  # vectors not wanted, or a run written before fmx/fmy existed
         f["fmx"] = np.nan
         f["fmy"] = np.nan
@@ -265,7 +263,7 @@ def analyze_run(run_dir: str | Path, *, vectors: bool = True) -> Tables:
     h = float(frame["H"].iloc[0])
     comp_steps = h_by_step.loc[h_by_step["phase"] == 2, "step"]
     comp_frames = fr[fr["step"].isin(comp_steps)]
-    forces, hist, stats = _forces_at(run_dir, frame, h, geo["diameters"], comp_frames,
+    forces, hist, stats = _forces_at(frame, geo["diameters"], comp_frames,
                                      vectors and np.isfinite(h))
     tables.update(forces=forces, force_histogram=hist, force_species=stats)
     row = ts.loc[ts["step"] == frame_step].iloc[0]

@@ -2,8 +2,8 @@ r"""Analysis of a damped piston record (magnetic granular damper, thesis Sec. 5.
 
 A free piston of given mass falls on the magnetic bed and oscillates with damping about a rest height.
 This module analyses such a height record ``z(t)``; it is independent of the engine (pure functions on
-arrays, results as small frozen dataclasses with ``.to_series()`` or as pandas DataFrames) and does not
-import other ``pyorch`` modules.
+arrays, results as small frozen dataclasses with ``.to_series()`` or as pandas DataFrames); only
+:func:`sweep_metrics`, the adapter for ``pyorch.sweep``, reads a run directory (through ``pyorch.io``).
 
 Units
 -----
