@@ -174,15 +174,21 @@ contains
       if (m%dry_order > 0) call dry_friction(s%n, s%nfac, s%s3, m%mu_s, m%mu_d, m%v_t, &
            s%vx, s%vy, s%fx, s%fy)
       if (m%viscous_on) call viscous_friction(s%n, s%mass, m%gamma, s%vx, s%vy, s%fx, s%fy)
+      bad = huge(1)
+      !$omp parallel do if (s%n >= 4000) schedule(static) reduction(min: bad)
       do i = 1, s%n
-        if (.not. (abs(s%fx(i)) <= huge(1.0_dp) .and. abs(s%fy(i)) <= huge(1.0_dp))) then
-          write(buf, '(a,i0,a,es12.5,a,i0,a,es12.5,1x,es12.5,a,es12.5,1x,es12.5,a)') 'step ', &
-               s%step, ' t = ', s%t, ' T: non-finite force on particle ', s%id(i), ' (f = ', &
-               s%fx(i), s%fy(i), ' at ', s%x(i), s%y(i), '): reduce dt or check the scene'
-          call set_error(st, exit_numerical, trim(buf))
-          return
-        end if
+        if (.not. (abs(s%fx(i)) <= huge(1.0_dp) .and. abs(s%fy(i)) <= huge(1.0_dp))) &
+             bad = min(bad, i)
       end do
+      !$omp end parallel do
+      if (bad /= huge(1)) then
+        i = bad
+        write(buf, '(a,i0,a,es12.5,a,i0,a,es12.5,1x,es12.5,a,es12.5,1x,es12.5,a)') 'step ', &
+             s%step, ' t = ', s%t, ' T: non-finite force on particle ', s%id(i), ' (f = ', &
+             s%fx(i), s%fy(i), ' at ', s%x(i), s%y(i), '): reduce dt or check the scene'
+        call set_error(st, exit_numerical, trim(buf))
+        return
+      end if
     end associate
   end subroutine sim_forces
 
@@ -191,6 +197,7 @@ contains
     type(sim_t), intent(inout) :: sim
     real(dp), intent(out) :: r2min   !< smallest squared pair distance seen [D1^2]
     logical :: r3
+    integer :: i
     associate (s => sim%s, m => sim%m, nl => sim%nl)
       r3 = m%dry_order > 0
       if (m%neighbour == nb_all_pairs) then
@@ -216,9 +223,13 @@ contains
                s%fx_far, s%fy_far, s%s3_far)
           s%tail_ready = .true.
         end if
-        s%fx = s%fx + s%fx_far
-        s%fy = s%fy + s%fy_far
-        if (r3) s%s3 = s%s3 + s%s3_far
+        !$omp parallel do if (s%n >= 4000) schedule(static)
+        do i = 1, s%n
+          s%fx(i) = s%fx(i) + s%fx_far(i)
+          s%fy(i) = s%fy(i) + s%fy_far(i)
+          if (r3) s%s3(i) = s%s3(i) + s%s3_far(i)
+        end do
+        !$omp end parallel do
       end if
     end associate
   end subroutine pair_pass

@@ -14,6 +14,10 @@ module pair_forces
 
   integer, parameter :: mode_all = 1, mode_list = 2
 
+  !> Spill buffers of threaded_pass (n, 3, threads): reactions a thread puts on
+  !> rows owned by later threads. Kept between passes and all zero between them.
+  real(dp), allocatable :: spill(:, :, :)
+
 contains
 
   !> Kernel for one pair at squared distance r2 [D1^2]: the force on i is
@@ -78,64 +82,90 @@ contains
   end subroutine pair_forces_far
 
   !> Rows i_lo..i_hi of the all-pairs triangle; pairs with r^2 < r2_min are
-  !> masked out (0 for the full sum, r_c^2 for the far field).
-  subroutine rows_all(i_lo, i_hi, n, x, y, mu, wsin, k_pair, r2_min, with_r3, fx, fy, s3, &
-       r2low)
-    integer, intent(in) :: i_lo, i_hi, n
+  !> masked out (0 for the full sum, r_c^2 for the far field). Reactions on
+  !> j <= hi_direct go to fx, fy, s3, those on j > hi_direct to the spill
+  !> arrays sx, sy, ss (another thread owns those rows; see threaded_pass).
+  subroutine rows_all(i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, r2_min, with_r3, &
+       fx, fy, s3, sx, sy, ss, r2low)
+    integer, intent(in) :: i_lo, i_hi, hi_direct, n
     real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair, r2_min
     logical, intent(in) :: with_r3
     real(dp), intent(inout) :: fx(n), fy(n), s3(n)
+    real(dp), intent(inout) :: sx(*), sy(*), ss(*)
     real(dp), intent(inout) :: r2low   !< running minimum of r^2
-    integer :: i, j
-    real(dp) :: xi, yi, ci, dx, dy, r2, s5, r3, c, fxi, fyi, s3i, wi, keep, low
-    ! the running minimum lives in a local: a dummy argument in the inner loop
-    ! would alias the force arrays (no vectorisation) and false-share between threads
-    low = r2low
+    integer :: i
+    real(dp) :: fxi, fyi, s3i
     do i = i_lo, i_hi
-      xi = x(i); yi = y(i)
-      ci = k_pair*mu(i)
-      wi = wsin(i)
       fxi = 0; fyi = 0; s3i = 0
-      do j = i + 1, n
-        dx = xi - x(j)
-        dy = yi - y(j)
-        r2 = dx*dx + dy*dy
-        low = min(low, r2)
-        keep = merge(1.0_dp, 0.0_dp, r2 >= r2_min)
-        call dipole_kernel(r2, 0.0_dp, s5, r3)
-        c = keep*ci*mu(j)*s5
-        fxi = fxi + c*dx
-        fyi = fyi + c*dy
-        fx(j) = fx(j) - c*dx
-        fy(j) = fy(j) - c*dy
-        if (with_r3) then
-          r3 = keep*r3
-          s3i = s3i + wsin(j)*r3
-          s3(j) = s3(j) + wi*r3
-        end if
-      end do
+      call row_segment(i, i + 1, min(n, hi_direct), n, x, y, mu, wsin, k_pair, r2_min, &
+           with_r3, fx, fy, s3, fxi, fyi, s3i, r2low)
+      if (hi_direct < n) call row_segment(i, max(i + 1, hi_direct + 1), n, n, x, y, mu, &
+           wsin, k_pair, r2_min, with_r3, sx, sy, ss, fxi, fyi, s3i, r2low)
       fx(i) = fx(i) + fxi
       fy(i) = fy(i) + fyi
       if (with_r3) s3(i) = s3(i) + s3i
     end do
-    r2low = low
   end subroutine rows_all
 
+  !> Pairs (i, j), j = j_lo..j_hi, of the triangle (contiguous j: vectorised).
+  !> The action on i is added to fxi, fyi, s3i, the reaction to ax, ay, a3(j).
+  subroutine row_segment(i, j_lo, j_hi, n, x, y, mu, wsin, k_pair, r2_min, with_r3, &
+       ax, ay, a3, fxi, fyi, s3i, r2low)
+    integer, intent(in) :: i, j_lo, j_hi, n
+    real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair, r2_min
+    logical, intent(in) :: with_r3
+    real(dp), intent(inout) :: ax(*), ay(*), a3(*)
+    real(dp), intent(inout) :: fxi, fyi, s3i, r2low
+    integer :: j
+    real(dp) :: xi, yi, ci, wi, dx, dy, r2, s5, r3, c, keep, low, gx, gy, g3
+    ! accumulate in locals: dummy arguments updated in the inner loop may
+    ! alias the force arrays (no vectorisation) and false-share between threads
+    low = r2low
+    gx = 0; gy = 0; g3 = 0
+    xi = x(i); yi = y(i)
+    ci = k_pair*mu(i)
+    wi = wsin(i)
+    do j = j_lo, j_hi
+      dx = xi - x(j)
+      dy = yi - y(j)
+      r2 = dx*dx + dy*dy
+      low = min(low, r2)
+      keep = merge(1.0_dp, 0.0_dp, r2 >= r2_min)
+      call dipole_kernel(r2, 0.0_dp, s5, r3)
+      c = keep*ci*mu(j)*s5
+      gx = gx + c*dx
+      gy = gy + c*dy
+      ax(j) = ax(j) - c*dx
+      ay(j) = ay(j) - c*dy
+      if (with_r3) then
+        r3 = keep*r3
+        g3 = g3 + wsin(j)*r3
+        a3(j) = a3(j) + wi*r3
+      end if
+    end do
+    fxi = fxi + gx
+    fyi = fyi + gy
+    s3i = s3i + g3
+    r2low = low
+  end subroutine row_segment
+
   !> Rows i_lo..i_hi of a half neighbour list. Two passes per chunk: gather
-  !> and evaluate (vectorisable), then accumulate on i and scatter on j.
-  subroutine rows_list(i_lo, i_hi, n, x, y, mu, wsin, k_pair, rc2, shift4, check, with_r3, &
-       start, nbr, fx, fy, s3, r2low)
-    integer, intent(in) :: i_lo, i_hi, n
+  !> and evaluate (vectorisable), then accumulate on i and scatter on j
+  !> (reactions on j > hi_direct to the spill arrays, as in rows_all).
+  subroutine rows_list(i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, shift4, check, &
+       with_r3, start, nbr, fx, fy, s3, sx, sy, ss, r2low)
+    integer, intent(in) :: i_lo, i_hi, hi_direct, n
     real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair, rc2, shift4
     logical, intent(in) :: check, with_r3
     integer, intent(in) :: start(n + 1), nbr(:)
     real(dp), intent(inout) :: fx(n), fy(n), s3(n)
+    real(dp), intent(inout) :: sx(*), sy(*), ss(*)
     real(dp), intent(inout) :: r2low   !< running minimum of r^2
     integer, parameter :: chunk = 256
-    integer :: i, j, m, k0, nk
+    integer :: i, j, m, k0, nk, jtop
     real(dp) :: xi, yi, ci, wi, fxi, fyi, s3i, r2, keep, low
     real(dp) :: dxs(chunk), dys(chunk), cs(chunk), r3s(chunk)
-    low = r2low   ! local running minimum (see rows_all)
+    low = r2low   ! local running minimum (see row_segment)
     do i = i_lo, i_hi
       xi = x(i); yi = y(i)
       ci = k_pair*mu(i)
@@ -143,8 +173,10 @@ contains
       fxi = 0; fyi = 0; s3i = 0
       do k0 = start(i), start(i + 1) - 1, chunk
         nk = min(chunk, start(i + 1) - k0)
+        jtop = 0
         do m = 1, nk
           j = nbr(k0 + m - 1)
+          jtop = max(jtop, j)
           dxs(m) = xi - x(j)
           dys(m) = yi - y(j)
           r2 = dxs(m)*dxs(m) + dys(m)*dys(m)
@@ -155,18 +187,36 @@ contains
           cs(m) = keep*ci*mu(j)*cs(m)
           r3s(m) = keep*r3s(m)
         end do
-        do m = 1, nk
-          j = nbr(k0 + m - 1)
-          fxi = fxi + cs(m)*dxs(m)
-          fyi = fyi + cs(m)*dys(m)
-          fx(j) = fx(j) - cs(m)*dxs(m)
-          fy(j) = fy(j) - cs(m)*dys(m)
-        end do
-        if (with_r3) then
+        if (jtop <= hi_direct) then   ! the usual case: every j is ours
           do m = 1, nk
             j = nbr(k0 + m - 1)
-            s3i = s3i + wsin(j)*r3s(m)
-            s3(j) = s3(j) + wi*r3s(m)
+            fxi = fxi + cs(m)*dxs(m)
+            fyi = fyi + cs(m)*dys(m)
+            fx(j) = fx(j) - cs(m)*dxs(m)
+            fy(j) = fy(j) - cs(m)*dys(m)
+          end do
+          if (with_r3) then
+            do m = 1, nk
+              j = nbr(k0 + m - 1)
+              s3i = s3i + wsin(j)*r3s(m)
+              s3(j) = s3(j) + wi*r3s(m)
+            end do
+          end if
+        else                          ! rows next to a later thread's block
+          do m = 1, nk
+            j = nbr(k0 + m - 1)
+            fxi = fxi + cs(m)*dxs(m)
+            fyi = fyi + cs(m)*dys(m)
+            if (with_r3) s3i = s3i + wsin(j)*r3s(m)
+            if (j <= hi_direct) then
+              fx(j) = fx(j) - cs(m)*dxs(m)
+              fy(j) = fy(j) - cs(m)*dys(m)
+              if (with_r3) s3(j) = s3(j) + wi*r3s(m)
+            else
+              sx(j) = sx(j) - cs(m)*dxs(m)
+              sy(j) = sy(j) - cs(m)*dys(m)
+              if (with_r3) ss(j) = ss(j) + wi*r3s(m)
+            end if
           end do
         end if
       end do
@@ -177,9 +227,13 @@ contains
     r2low = low
   end subroutine rows_list
 
-  !> Run the rows on the OpenMP threads, deterministically: thread t takes a
-  !> fixed block of rows holding ~1/nt of the pairs and accumulates into its
-  !> own buffer; buffers are then added in thread order. The result does not
+  !> Run the rows on the OpenMP threads, deterministically and without
+  !> per-step buffers. Thread t takes a fixed block of rows lo_t..hi_t
+  !> holding ~1/nt of the pairs. Since every pair (i, j) has j > i, only
+  !> thread t touches the force entries of its own block: it adds to them
+  !> directly, and puts its reactions on rows j > hi_t (the band next to the
+  !> following blocks) into a persistent spill buffer. After a barrier the
+  !> spills are added in thread order and reset to zero. The result does not
   !> depend on scheduling, and on the thread count only through round-off.
   subroutine threaded_pass(mode, n, x, y, mu, wsin, k_pair, r2_min, rc2, shift4, check, &
        with_r3, start, nbr, fx, fy, s3, r2low)
@@ -190,10 +244,10 @@ contains
     integer, intent(in) :: start(:), nbr(:)
     real(dp), intent(inout) :: fx(n), fy(n), s3(n)
     real(dp), intent(out) :: r2low
-    real(dp), allocatable :: buf(:, :, :)
     real(dp) :: low(64)
-    integer :: nt, t, lo, hi, i
-    real(dp) :: work
+    integer :: nt, t, lo, hi, i, u
+    integer :: bound(0:64)
+    real(dp) :: work, dummy(1, 3)
     nt = 1
     ! threads only pay off with enough pairs per step (fork/join costs ~ microseconds)
     if (mode == mode_all) then
@@ -204,49 +258,63 @@ contains
     !$ if (work >= 5.0e4_dp) nt = min(omp_get_max_threads(), 64)
     r2low = huge(1.0_dp)
     if (nt == 1) then
-      call rows(1, n, fx, fy, s3, r2low)
+      dummy = 0
+      call rows(1, n, n, fx, fy, s3, dummy(:, 1), dummy(:, 2), dummy(:, 3), r2low)
       return
     end if
-    allocate(buf(n, 3, nt))
-    !$omp parallel num_threads(nt) default(shared) private(t, lo, hi)
+    if (allocated(spill)) then
+      if (size(spill, 1) /= n .or. size(spill, 3) < nt) deallocate(spill)
+    end if
+    if (.not. allocated(spill)) then
+      allocate(spill(n, 3, nt))
+      spill = 0
+    end if
+    do t = 0, nt
+      bound(t) = first_row(t)
+    end do
+    !$omp parallel num_threads(nt) default(shared) private(t, lo, hi, u)
     t = 1
     !$ t = omp_get_thread_num() + 1
-    buf(:, :, t) = 0
     low(t) = huge(1.0_dp)
-    call block_of(t, lo, hi)
-    call rows(lo, hi, buf(:, 1, t), buf(:, 2, t), buf(:, 3, t), low(t))
+    lo = bound(t - 1) + 1
+    hi = bound(t)
+    call rows(lo, hi, hi, fx, fy, s3, spill(:, 1, t), spill(:, 2, t), spill(:, 3, t), low(t))
     !$omp barrier
+    ! rows above the first block may hold spills of earlier threads
     !$omp do schedule(static)
-    do i = 1, n
-      fx(i) = fx(i) + sum(buf(i, 1, :))
-      fy(i) = fy(i) + sum(buf(i, 2, :))
-      if (with_r3) s3(i) = s3(i) + sum(buf(i, 3, :))
+    do i = bound(1) + 1, n
+      do u = 1, nt - 1
+        if (i <= bound(u)) exit      ! threads u and later own row i or spill nothing on it
+        fx(i) = fx(i) + spill(i, 1, u)
+        fy(i) = fy(i) + spill(i, 2, u)
+        spill(i, 1, u) = 0
+        spill(i, 2, u) = 0
+        if (with_r3) then
+          s3(i) = s3(i) + spill(i, 3, u)
+          spill(i, 3, u) = 0
+        end if
+      end do
     end do
     !$omp end do
     !$omp end parallel
     r2low = minval(low(1:nt))
   contains
-    subroutine rows(i_lo, i_hi, ax, ay, a3, lw)
-      integer, intent(in) :: i_lo, i_hi
-      real(dp), intent(inout) :: ax(n), ay(n), a3(n), lw
+    subroutine rows(i_lo, i_hi, hi_direct, ax, ay, a3, bx, by, b3, lw)
+      integer, intent(in) :: i_lo, i_hi, hi_direct
+      real(dp), intent(inout) :: ax(n), ay(n), a3(n), bx(*), by(*), b3(*), lw
       if (mode == mode_all) then
-        call rows_all(i_lo, i_hi, n, x, y, mu, wsin, k_pair, r2_min, with_r3, ax, ay, a3, lw)
+        call rows_all(i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, r2_min, with_r3, &
+             ax, ay, a3, bx, by, b3, lw)
       else
-        call rows_list(i_lo, i_hi, n, x, y, mu, wsin, k_pair, rc2, shift4, check, with_r3, &
-             start, nbr, ax, ay, a3, lw)
+        call rows_list(i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, shift4, check, &
+             with_r3, start, nbr, ax, ay, a3, bx, by, b3, lw)
       end if
     end subroutine rows
-    !> Rows of thread t: equal shares of the pairs (triangle or list).
-    subroutine block_of(t, lo, hi)
-      integer, intent(in) :: t
-      integer, intent(out) :: lo, hi
-      lo = first_row(t - 1) + 1
-      hi = first_row(t)
-    end subroutine block_of
     !> Last row of the first k shares (0 for k = 0, n for k = nt).
     integer function first_row(k) result(r)
       integer, intent(in) :: k
       real(dp) :: target, total
+      integer :: lo_r, hi_r, mid
       if (k <= 0) then
         r = 0
         return
@@ -263,10 +331,18 @@ contains
       else
         total = real(start(n + 1) - 1, dp)
         target = total*real(k, dp)/real(nt, dp)
-        r = 0
-        do while (r < n .and. real(start(r + 1) - 1, dp) < target)
-          r = r + 1
+        ! smallest r with start(r + 1) - 1 >= target (start is monotonic): bisection
+        lo_r = 0
+        hi_r = n
+        do while (lo_r < hi_r)
+          mid = (lo_r + hi_r)/2
+          if (real(start(mid + 1) - 1, dp) < target) then
+            lo_r = mid + 1
+          else
+            hi_r = mid
+          end if
         end do
+        r = lo_r
       end if
       r = max(0, min(n, r))
     end function first_row

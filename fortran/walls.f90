@@ -23,30 +23,47 @@ contains
   pure function wall_push(law, k, l, along, length) result(f)
     integer, intent(in) :: law
     real(dp), intent(in) :: k, l, along, length
-    real(dp) :: f, l3, a, b
-    l3 = l*l*l
+    real(dp) :: f
+    real(dp) :: fb(1, 1)
+    call push_block(law, k, 1, reshape([l], [1, 1]), reshape([along], [1, 1]), [length], fb)
+    f = fb(1, 1)
+  end function wall_push
+
+  !> The law, for a block of m particles and nw walls: f(i, w) is the push
+  !> of wall w at distance l(i, w) (slab law: particle at along(i, w) on a
+  !> wall of length length(w)). The select is outside the loops, so each law
+  !> is one vectorised array expression.
+  pure subroutine push_block(law, k, m, l, along, length, f)
+    integer, intent(in) :: law, m
+    real(dp), intent(in) :: k, l(:, :), along(:, :), length(:)
+    real(dp), intent(out) :: f(:, :)
+    integer :: w
     select case (law)
     case (wall_experimental)
-      f = k/(l3*sqrt(l))
+      f(1:m, :) = k/(l(1:m, :)**3*sqrt(l(1:m, :)))
     case (wall_infinite)
-      f = k/l3
+      f(1:m, :) = k/l(1:m, :)**3
     case (wall_slab)
-      a = l/max(along, tiny(1.0_dp))
-      b = l/max(length - along, tiny(1.0_dp))
-      f = k/l3*(g(a) + g(b))
+      do w = 1, size(l, 2)
+        f(1:m, w) = k/l(1:m, w)**3*(slab_edge(l(1:m, w)/max(along(1:m, w), tiny(1.0_dp))) &
+             + slab_edge(l(1:m, w)/max(length(w) - along(1:m, w), tiny(1.0_dp))))
+      end do
     case default
-      f = 0
+      f(1:m, :) = 0
     end select
-  contains
-    pure real(dp) function g(q)
-      real(dp), intent(in) :: q
-      g = (3*q*q + 2)/((3*q*q + 3)*sqrt(q*q + 1))
-    end function g
-  end function wall_push
+  end subroutine push_block
+
+  !> Edge factor of the finite slab law (eq. 3.17): g(q) = (3q^2+2)/((3q^2+3) sqrt(q^2+1)).
+  pure elemental real(dp) function slab_edge(q) result(g)
+    real(dp), intent(in) :: q
+    g = (3*q*q + 2)/((3*q*q + 3)*sqrt(q*q + 1))
+  end function slab_edge
 
   !> Add wall forces to fx, fy; return the total force of the particles on
   !> the piston (positive = pushing it up) and the first particle found
   !> outside the cell (or with a non-finite coordinate), 0 if none.
+  !> Particles go by blocks of `chunk`: distances to the walls, the law
+  !> (push_block), then the sums.
   subroutine wall_forces(n, x, y, mu, law, k, width, height, h, with_piston, &
        fx, fy, f_piston, outside)
     integer, intent(in) :: n
@@ -58,32 +75,45 @@ contains
     real(dp), intent(inout) :: fx(n), fy(n)
     real(dp), intent(out) :: f_piston
     integer, intent(out) :: outside
-    integer :: i, first_bad
-    real(dp) :: top, xi, yi
+    integer, parameter :: chunk = 256
+    integer :: i, i0, m, nw, first_bad
+    real(dp) :: top, l(chunk, 4), along(chunk, 4), f(chunk, 4), lengths(4)
     real(dp), allocatable :: fp(:)   !< push of the piston on each particle
     allocate(fp(n))
     top = height
     if (with_piston) top = h
+    nw = merge(4, 3, with_piston)   ! left, right, bottom (+ piston)
+    lengths = [height, height, width, width]
     first_bad = huge(1)
-    !$omp parallel do if (n >= par_min) schedule(static) default(shared) private(i, xi, yi) &
-    !$omp reduction(min: first_bad)
-    do i = 1, n
-      xi = x(i); yi = y(i)
-      fp(i) = 0
-      ! written so that NaN fails the test too
-      if (.not. (xi > 0 .and. xi < width .and. yi > 0 .and. yi < top)) then
-        first_bad = min(first_bad, i)
+    !$omp parallel do if (n >= par_min) schedule(static) default(shared) &
+    !$omp private(i, i0, m, l, along, f) reduction(min: first_bad)
+    do i0 = 1, n, chunk
+      m = min(chunk, n - i0 + 1)
+      do i = 1, m
+        ! written so that NaN fails the test too; the forces of an outside particle
+        ! are garbage, but the engine stops on `outside` before using them
+        if (.not. (x(i0 + i - 1) > 0 .and. x(i0 + i - 1) < width .and. y(i0 + i - 1) > 0 &
+             .and. y(i0 + i - 1) < top)) first_bad = min(first_bad, i0 + i - 1)
+      end do
+      if (law == 0) then
+        fp(i0:i0 + m - 1) = 0
         cycle
       end if
-      if (law /= 0) then
-        fx(i) = fx(i) + mu(i)*(wall_push(law, k, xi, yi, height) &
-             - wall_push(law, k, width - xi, yi, height))
-        fy(i) = fy(i) + mu(i)*wall_push(law, k, yi, xi, width)
-        if (with_piston) then
-          fp(i) = mu(i)*wall_push(law, k, h - yi, xi, width)
-          fy(i) = fy(i) - fp(i)
-        end if
-      end if
+      l(1:m, 1) = x(i0:i0 + m - 1)
+      l(1:m, 2) = width - x(i0:i0 + m - 1)
+      l(1:m, 3) = y(i0:i0 + m - 1)
+      l(1:m, 4) = h - y(i0:i0 + m - 1)
+      along(1:m, 1) = y(i0:i0 + m - 1)
+      along(1:m, 2) = y(i0:i0 + m - 1)
+      along(1:m, 3) = x(i0:i0 + m - 1)
+      along(1:m, 4) = x(i0:i0 + m - 1)
+      call push_block(law, k, m, l(:, 1:nw), along(:, 1:nw), lengths(1:nw), f(:, 1:nw))
+      if (.not. with_piston) f(1:m, 4) = 0
+      do i = 1, m
+        fx(i0 + i - 1) = fx(i0 + i - 1) + mu(i0 + i - 1)*(f(i, 1) - f(i, 2))
+        fp(i0 + i - 1) = mu(i0 + i - 1)*f(i, 4)
+        fy(i0 + i - 1) = fy(i0 + i - 1) + mu(i0 + i - 1)*f(i, 3) - fp(i0 + i - 1)
+      end do
     end do
     !$omp end parallel do
     outside = 0

@@ -157,7 +157,12 @@ def summarise(rows: pd.DataFrame) -> pd.DataFrame:
     agg = {"time_per_step_s": "mean", "pair_evals_per_s": "mean", "list_builds": "mean",
            "pairs_per_step": "mean", "err_F_max": "mean", "err_D_hat": "mean", "err_n6": "mean",
            "bias_F_max": "mean", "bias_D_hat": "mean", "bias_n6": "mean", "seed": "count"}
-    table = ok.groupby(["label", "threads"] + KNOBS, dropna=False).agg(agg).reset_index()
+    groups = ok.groupby(["label", "threads"] + KNOBS, dropna=False)
+    table = groups.agg(agg).reset_index()
+    # standard error of the seed-averaged bias (seeds paired with the reference's)
+    sem = groups[["bias_F_max", "bias_D_hat", "bias_n6"]].sem().reset_index(drop=True)
+    for col in sem.columns:
+        table[f"sem_{col}"] = sem[col].to_numpy()
     table = table.rename(columns={"seed": "n_seeds"})
     failed = rows[~rows["status"].eq("completed")]
     if not failed.empty:
@@ -168,8 +173,14 @@ def summarise(rows: pd.DataFrame) -> pd.DataFrame:
 
 
 def trade_study(base_path: Path, settings: Sequence[Setting], seeds: Iterable[int],
-                out_dir: Path, progress: bool = True) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """Run reference + settings for every seed; return (rows, summary)."""
+                out_dir: Path, progress: bool = True,
+                workers: int = 1) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Run reference + settings for every seed; return (rows, summary).
+
+    ``workers`` > 1 runs that many engine processes at once (one thread each):
+    errors are unchanged, but wall times per step are then measured on a
+    shared machine and are not fit for the speed columns.
+    """
     base = Scene.read(base_path)
     seeds = list(seeds)
     ref = Setting.of(**REFERENCE)
@@ -177,13 +188,24 @@ def trade_study(base_path: Path, settings: Sequence[Setting], seeds: Iterable[in
     jobs = [(ref, s, 1) for s in seeds] + [(probe, s, 1) for s in seeds]
     jobs += [(st, s, 1) for st, s in itertools.product(settings, seeds) if st not in (ref, probe)]
     rows = []
-    iterator: Iterable[Any] = jobs
+    iterator: Iterable[Any]
+    if workers > 1:
+        from concurrent.futures import ProcessPoolExecutor
+
+        pool = ProcessPoolExecutor(max_workers=workers)
+        iterator = pool.map(run_setting, *zip(*[(base, st, seed, out_dir / "runs", threads)
+                                                for st, seed, threads in jobs]))
+    else:
+        pool = None
+        iterator = (run_setting(base, st, seed, out_dir / "runs", threads)
+                    for st, seed, threads in jobs)
     if progress:
         from tqdm import tqdm
 
-        iterator = tqdm(jobs, desc="trade study", unit="run")
-    for st, seed, threads in iterator:
-        rows.append(run_setting(base, st, seed, out_dir / "runs", threads))
+        iterator = tqdm(iterator, total=len(jobs), desc="trade study", unit="run")
+    rows = list(iterator)
+    if pool is not None:
+        pool.shutdown()
     df = add_errors(pd.DataFrame(rows))
     return df, summarise(df)
 
@@ -291,13 +313,34 @@ def apply_target(scene: Scene, table_path: Path | None = None) -> tuple[Scene, s
 
 
 def bias_study(base_path: Path, r_cuts: Sequence[float], seeds: Iterable[int], out_dir: Path,
-               progress: bool = True) -> pd.DataFrame:
+               progress: bool = True, workers: int = 1) -> pd.DataFrame:
     """Truncation bias of F_max, D_hat, n6 vs r_c: plain, shifted force, frozen tail."""
     settings = [Setting.of(r_cut=rc, truncation=tr, tail=tl)
                 for rc in r_cuts for tr, tl in (("plain", "none"), ("shifted_force", "none"),
                                                  ("plain", "frozen"))]
-    rows, _ = trade_study(base_path, settings, seeds, out_dir, progress)
+    rows, _ = trade_study(base_path, settings, seeds, out_dir, progress, workers)
     return rows
+
+
+def seed_grid() -> list[Setting]:
+    """Settings of the seed-averaged bias study: the production choices against the
+    reference (plus the reference itself at the production dt)."""
+    return [Setting.of(r_cut=3.0, tail="frozen"), Setting.of(r_cut=7.13, tail="frozen"),
+            Setting.of(r_cut=7.13), Setting.of(neighbour="all_pairs")]
+
+
+def bias_summary_text(table: pd.DataFrame) -> str:
+    """Bias of each setting with its standard error and 95 % interval, in %."""
+    lines = [f"{'setting':40s} {'seeds':>5s} {'F_max bias %':>13s} {'+-sem':>6s} "
+             f"{'95 % interval':>17s} {'D_hat bias %':>13s} {'+-sem':>6s}"]
+    for _, r in table.iterrows():
+        if not np.isfinite(r.get("bias_F_max", np.nan)):
+            continue
+        b, s = 100 * r["bias_F_max"], 100 * r["sem_bias_F_max"]
+        lines.append(f"{r['label']:40s} {int(r['n_seeds']):5d} {b:+13.3f} {s:6.3f} "
+                     f"[{b - 1.96 * s:+7.3f}, {b + 1.96 * s:+7.3f}] "
+                     f"{100 * r['bias_D_hat']:+13.3f} {100 * r['sem_bias_D_hat']:6.3f}")
+    return "\n".join(lines)
 
 
 def main_bench(args: Any) -> int:
@@ -305,7 +348,8 @@ def main_bench(args: Any) -> int:
     out.mkdir(parents=True, exist_ok=True)
     seeds = list(range(1, args.seeds + 1))
     if args.what == "trade":
-        rows, table = trade_study(Path(args.scene), default_grid(args.quick), seeds, out / "trade")
+        rows, table = trade_study(Path(args.scene), default_grid(args.quick), seeds, out / "trade",
+                                  workers=args.workers)
         rows.to_csv(out / "trade_rows.csv", index=False)
         table.to_csv(out / "trade.csv", index=False)
         probe = rows[rows["label"].eq(noise_probe().label())]
@@ -316,8 +360,15 @@ def main_bench(args: Any) -> int:
                 "err_D_hat", "err_n6", "bias_F_max"]
         print(table[table["threads"].eq(1)][cols].to_string(index=False))
         print(f"noise floor (reference in velocity-Verlet form): {noise}")
+    elif args.what == "seeds":
+        rows, table = trade_study(Path(args.scene), seed_grid(), seeds, out / "seeds",
+                                  workers=args.workers)
+        rows.to_csv(out / "seeds_rows.csv", index=False)
+        table.to_csv(out / "seeds.csv", index=False)
+        print(bias_summary_text(table))
     else:
-        rows = bias_study(Path(args.scene), [3.0, 4.13, 5.0, 7.13, 10.0, 14.0], seeds, out / "bias")
+        rows = bias_study(Path(args.scene), [3.0, 4.13, 5.0, 7.13, 10.0, 14.0], seeds, out / "bias",
+                          workers=args.workers)
         rows.to_csv(out / "bias_rows.csv", index=False)
         table = summarise(rows)
         table.to_csv(out / "bias.csv", index=False)

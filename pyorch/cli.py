@@ -4,7 +4,7 @@
     pyorch check SCENE.nml [--set ...]
     pyorch plot RUN_DIR [--out DIR] [--no-structure]
     pyorch analyze RUN_DIR [--out DIR]
-    pyorch bench trade|bias [--scene S] [--seeds N] [--quick] [--out DIR]
+    pyorch bench trade|bias|seeds [--scene S] [--seeds N] [--quick] [--workers W] [--out DIR]
     pyorch sweep SWEEP.toml [--workers N] [--scheduler ADDR] [--cluster local|slurm]
 """
 from __future__ import annotations
@@ -50,10 +50,14 @@ def _parser() -> argparse.ArgumentParser:
     add_sweep_parser(sub)
 
     b = sub.add_parser("bench", help="speed/accuracy trade study or truncation bias study")
-    b.add_argument("what", choices=["trade", "bias"])
+    b.add_argument("what", choices=["trade", "bias", "seeds"],
+                   help="trade: every knob; bias: bias vs r_c; seeds: seed-averaged bias of "
+                        "the production settings with standard errors")
     b.add_argument("--scene", type=Path, default=Path("runs/bench_compression.nml"))
     b.add_argument("--seeds", type=int, default=3)
     b.add_argument("--quick", action="store_true", help="4 settings only (smoke test)")
+    b.add_argument("--workers", type=int, default=1,
+                   help="engine processes at once (errors only: times are then contended)")
     b.add_argument("--out", type=Path, default=Path("bench/results"))
     return p
 
