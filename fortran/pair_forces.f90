@@ -162,7 +162,8 @@ contains
     real(dp), intent(inout) :: sx(*), sy(*), ss(*)
     real(dp), intent(inout) :: r2low   !< running minimum of r^2
     integer, parameter :: chunk = 256
-    integer :: i, j, m, k0, nk, jtop
+    integer :: i, j, m, k0, nk
+    logical :: direct
     real(dp) :: xi, yi, ci, wi, fxi, fyi, s3i, r2, keep, low
     real(dp) :: dxs(chunk), dys(chunk), cs(chunk), r3s(chunk)
     low = r2low   ! local running minimum (see row_segment)
@@ -173,10 +174,8 @@ contains
       fxi = 0; fyi = 0; s3i = 0
       do k0 = start(i), start(i + 1) - 1, chunk
         nk = min(chunk, start(i + 1) - k0)
-        jtop = 0
         do m = 1, nk
           j = nbr(k0 + m - 1)
-          jtop = max(jtop, j)
           dxs(m) = xi - x(j)
           dys(m) = yi - y(j)
           r2 = dxs(m)*dxs(m) + dys(m)*dys(m)
@@ -187,7 +186,9 @@ contains
           cs(m) = keep*ci*mu(j)*cs(m)
           r3s(m) = keep*r3s(m)
         end do
-        if (jtop <= hi_direct) then   ! the usual case: every j is ours
+        direct = hi_direct >= n
+        if (.not. direct) direct = maxval(nbr(k0:k0 + nk - 1)) <= hi_direct
+        if (direct) then   ! the usual case: every j is ours
           do m = 1, nk
             j = nbr(k0 + m - 1)
             fxi = fxi + cs(m)*dxs(m)

@@ -173,13 +173,15 @@ def summarise(rows: pd.DataFrame) -> pd.DataFrame:
 
 
 def trade_study(base_path: Path, settings: Sequence[Setting], seeds: Iterable[int],
-                out_dir: Path, progress: bool = True,
-                workers: int = 1) -> tuple[pd.DataFrame, pd.DataFrame]:
+                out_dir: Path, progress: bool = True, workers: int = 1,
+                reuse: pd.DataFrame | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Run reference + settings for every seed; return (rows, summary).
 
     ``workers`` > 1 runs that many engine processes at once (one thread each):
     errors are unchanged, but wall times per step are then measured on a
-    shared machine and are not fit for the speed columns.
+    shared machine and are not fit for the speed columns. ``reuse``: rows of
+    an earlier study of the same scene (e.g. its *_rows.csv); completed
+    (label, seed, threads) found there are not run again.
     """
     base = Scene.read(base_path)
     seeds = list(seeds)
@@ -187,6 +189,12 @@ def trade_study(base_path: Path, settings: Sequence[Setting], seeds: Iterable[in
     probe = noise_probe()
     jobs = [(ref, s, 1) for s in seeds] + [(probe, s, 1) for s in seeds]
     jobs += [(st, s, 1) for st, s in itertools.product(settings, seeds) if st not in (ref, probe)]
+    kept = pd.DataFrame()
+    if reuse is not None and not reuse.empty:
+        ok = reuse[reuse["status"].eq("completed") & reuse["seed"].isin(seeds)]
+        have = set(zip(ok["label"], ok["seed"], ok["threads"]))
+        kept = ok[[c for c in ok.columns if not c.startswith(("err_", "bias_"))]]
+        jobs = [j for j in jobs if (j[0].label(), j[1], j[2]) not in have]
     rows = []
     iterator: Iterable[Any]
     if workers > 1:
@@ -206,7 +214,7 @@ def trade_study(base_path: Path, settings: Sequence[Setting], seeds: Iterable[in
     rows = list(iterator)
     if pool is not None:
         pool.shutdown()
-    df = add_errors(pd.DataFrame(rows))
+    df = add_errors(pd.concat([kept, pd.DataFrame(rows)], ignore_index=True))
     return df, summarise(df)
 
 
@@ -286,6 +294,7 @@ def overrides_for(row: pd.Series) -> dict[str, Any]:
 
 
 PACKAGED_TABLE = Path(__file__).resolve().parent / "data" / "trade.csv"
+PACKAGED_SEEDS = Path(__file__).resolve().parent / "data" / "seeds.csv"
 
 
 def default_table() -> Path:
@@ -295,9 +304,41 @@ def default_table() -> Path:
     return local if local.is_file() else PACKAGED_TABLE
 
 
-def apply_target(scene: Scene, table_path: Path | None = None) -> tuple[Scene, str | None]:
+def default_seeds_table() -> Path:
+    """The seed-averaged bias table (bench/results/seeds.csv here, else shipped)."""
+    local = Path.cwd() / "bench" / "results" / "seeds.csv"
+    return local if local.is_file() else PACKAGED_SEEDS
+
+
+def resolved_errors(seeds: pd.DataFrame, z: float = 1.96) -> pd.DataFrame:
+    """Rows of a seed-averaged study with the errors replaced by the 95 % upper
+    bound of the systematic error, |bias| + z sem (relative, for F_max and D_hat)."""
+    t = seeds.dropna(subset=["bias_F_max", "sem_bias_F_max"]).copy()
+    for what in ("F_max", "D_hat"):
+        t[f"err_{what}"] = t[f"bias_{what}"].abs() + z * t[f"sem_bias_{what}"].fillna(0)
+    t["err_max"] = t[["err_F_max", "err_D_hat"]].max(axis=1)
+    t["source"] = "seed-averaged bias, 95 % bound"
+    return t
+
+
+def selection_table(trade: pd.DataFrame, seeds: pd.DataFrame | None) -> pd.DataFrame:
+    """The trade table, with the rows the seed-averaged study also measured
+    replaced (and its extra settings added) by their resolved errors."""
+    t = trade.copy()
+    t["source"] = "trade study, mean |error| over seeds"
+    if seeds is None or seeds.empty:
+        return t
+    r = resolved_errors(seeds)
+    t = t[~t["label"].isin(set(r["label"]))]
+    return pd.concat([t, r[[c for c in r.columns if c in t.columns]]], ignore_index=True)
+
+
+def apply_target(scene: Scene, table_path: Path | None = None,
+                 seeds_path: Path | None = None) -> tuple[Scene, str | None]:
     """If the scene asks for target_rel_error, return it with the cheapest measured
-    setting applied and a one-line description of the choice."""
+    setting applied and a one-line description of the choice. Settings of the
+    seed-averaged study (``pyorch bench seeds``) are judged by the 95 % bound of
+    their bias, the others by the trade study's mean error."""
     target = float(scene.get("integration", "target_rel_error", 0.0) or 0.0)
     if target <= 0:
         return scene, None
@@ -305,10 +346,12 @@ def apply_target(scene: Scene, table_path: Path | None = None) -> tuple[Scene, s
     if not table_path.is_file():
         raise FileNotFoundError(f"target_rel_error = {target:g} needs the measured table "
                                 f"{table_path} (run: pyorch bench trade)")
-    row = choose(pd.read_csv(table_path), target)
+    seeds_path = Path(seeds_path) if seeds_path else default_seeds_table()
+    seeds = pd.read_csv(seeds_path) if seeds_path.is_file() else None
+    row = choose(selection_table(pd.read_csv(table_path), seeds), target)
     msg = (f"target_rel_error {target:g}: chose {row['label']} "
-           f"(measured error {row['err_max']:.2e}, {row['time_per_step_s'] * 1e6:.1f} us/step "
-           f"on the trade scene)")
+           f"(measured error {row['err_max']:.2e}: {row['source']}; "
+           f"{row['time_per_step_s'] * 1e6:.1f} us/step on the trade scene)")
     return scene.with_overrides(overrides_for(row)), msg
 
 
@@ -325,8 +368,8 @@ def bias_study(base_path: Path, r_cuts: Sequence[float], seeds: Iterable[int], o
 def seed_grid() -> list[Setting]:
     """Settings of the seed-averaged bias study: the production choices against the
     reference (plus the reference itself at the production dt)."""
-    return [Setting.of(r_cut=3.0, tail="frozen"), Setting.of(r_cut=7.13, tail="frozen"),
-            Setting.of(r_cut=7.13), Setting.of(neighbour="all_pairs")]
+    return [Setting.of(r_cut=rc, tail="frozen") for rc in (3.0, 4.13, 5.0, 7.13)] + \
+        [Setting.of(r_cut=7.13), Setting.of(neighbour="all_pairs")]
 
 
 def bias_summary_text(table: pd.DataFrame) -> str:
@@ -361,10 +404,12 @@ def main_bench(args: Any) -> int:
         print(table[table["threads"].eq(1)][cols].to_string(index=False))
         print(f"noise floor (reference in velocity-Verlet form): {noise}")
     elif args.what == "seeds":
+        reuse = pd.read_csv(args.reuse) if args.reuse else None
         rows, table = trade_study(Path(args.scene), seed_grid(), seeds, out / "seeds",
-                                  workers=args.workers)
+                                  workers=args.workers, reuse=reuse)
         rows.to_csv(out / "seeds_rows.csv", index=False)
         table.to_csv(out / "seeds.csv", index=False)
+        seeds_plot(table, out / "seeds.png")
         print(bias_summary_text(table))
     else:
         rows = bias_study(Path(args.scene), [3.0, 4.13, 5.0, 7.13, 10.0, 14.0], seeds, out / "bias",
@@ -396,6 +441,33 @@ def bias_plot(table: pd.DataFrame, path: Path) -> Path:
         ax.set_xlabel("cut-off r_c [D1]")
         ax.set_ylabel(f"bias of {what} vs O(N^2) [%]")
     axes[0].legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+    return path
+
+
+def seeds_plot(table: pd.DataFrame, path: Path, target: float = 0.005) -> Path:
+    """Seed-averaged bias of F_max and D_hat per setting with 95 % intervals
+    (1.96 standard errors), against the +-target band."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    t = table.dropna(subset=["bias_F_max"]).sort_values("bias_F_max").reset_index(drop=True)
+    fig, axes = plt.subplots(1, 2, figsize=(10, 0.45 * len(t) + 1.6), sharey=True)
+    ypos = np.arange(len(t))
+    for ax, what in zip(axes, ("F_max", "D_hat")):
+        ax.errorbar(100 * t[f"bias_{what}"], ypos, xerr=196 * t[f"sem_bias_{what}"], fmt="o",
+                    capsize=3)
+        ax.axvline(0, color="k", lw=0.6)
+        ax.axvspan(-100 * target, 100 * target, color="green", alpha=0.12,
+                   label=f"+-{100 * target:g} %")
+        ax.set_xlabel(f"bias of {what} vs O(N^2), dt 5e-4 [%] (95 % interval)")
+    axes[0].set_yticks(ypos, [f"{lab} ({int(n)} seeds)" for lab, n in zip(t["label"], t["n_seeds"])],
+                       fontsize=7)
+    axes[0].legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=130)
     plt.close(fig)

@@ -58,6 +58,8 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--quick", action="store_true", help="4 settings only (smoke test)")
     b.add_argument("--workers", type=int, default=1,
                    help="engine processes at once (errors only: times are then contended)")
+    b.add_argument("--reuse", type=Path, default=None,
+                   help="rows CSV of an earlier study of the scene: completed runs are kept")
     b.add_argument("--out", type=Path, default=Path("bench/results"))
     return p
 
