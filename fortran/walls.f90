@@ -12,22 +12,11 @@ module walls
   implicit none
   private
 
-  public :: wall_forces, wall_push, wall_energy
+  public :: wall_forces, wall_energy
 
   integer, parameter :: par_min = 4000    !< particles below which O(N) loops stay serial
 
 contains
-
-  !> Magnitude of the push of one wall at distance l, for a particle at
-  !> `along` on a wall of length `length` (slab law only uses those two).
-  pure function wall_push(law, k, l, along, length) result(f)
-    integer, intent(in) :: law
-    real(dp), intent(in) :: k, l, along, length
-    real(dp) :: f
-    real(dp) :: fb(1, 1)
-    call push_block(law, k, 1, reshape([l], [1, 1]), reshape([along], [1, 1]), [length], fb)
-    f = fb(1, 1)
-  end function wall_push
 
   !> The law, for a block of m particles and nw walls: f(i, w) is the push
   !> of wall w at distance l(i, w) (slab law: particle at along(i, w) on a
