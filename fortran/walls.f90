@@ -67,8 +67,7 @@ contains
     integer, parameter :: chunk = 256
     integer :: i, i0, m, nw, first_bad
     real(dp) :: top, l(chunk, 4), along(chunk, 4), f(chunk, 4), lengths(4)
-    real(dp), allocatable :: fp(:)   !< push of the piston on each particle
-    allocate(fp(n))
+    real(dp) :: part((n + chunk - 1)/chunk)   !< push on the piston by each block
     top = height
     if (with_piston) top = h
     nw = merge(4, 3, with_piston)   ! left, right, bottom (+ piston)
@@ -85,7 +84,7 @@ contains
              .and. y(i0 + i - 1) < top)) first_bad = min(first_bad, i0 + i - 1)
       end do
       if (law == 0) then
-        fp(i0:i0 + m - 1) = 0
+        part(1 + (i0 - 1)/chunk) = 0
         cycle
       end if
       l(1:m, 1) = x(i0:i0 + m - 1)
@@ -100,14 +99,15 @@ contains
       if (.not. with_piston) f(1:m, 4) = 0
       do i = 1, m
         fx(i0 + i - 1) = fx(i0 + i - 1) + mu(i0 + i - 1)*(f(i, 1) - f(i, 2))
-        fp(i0 + i - 1) = mu(i0 + i - 1)*f(i, 4)
-        fy(i0 + i - 1) = fy(i0 + i - 1) + mu(i0 + i - 1)*f(i, 3) - fp(i0 + i - 1)
+        f(i, 4) = mu(i0 + i - 1)*f(i, 4)
+        fy(i0 + i - 1) = fy(i0 + i - 1) + mu(i0 + i - 1)*f(i, 3) - f(i, 4)
       end do
+      part(1 + (i0 - 1)/chunk) = sum(f(1:m, 4))
     end do
     !$omp end parallel do
     outside = 0
     if (first_bad /= huge(1)) outside = first_bad
-    f_piston = sum(fp)   ! serial sum: the same bits for any thread count
+    f_piston = sum(part)   ! fixed blocks summed in order: the same bits for any thread count
   end subroutine wall_forces
 
   !> Wall potential energy [m1 g D1] for the laws that have one
