@@ -32,7 +32,8 @@ def scene_for(n: int, strategy: str, r_cut: float) -> Scene:
         "particles.n": n, "cell.width": 60 * s, "cell.height": 75 * s,
         "protocol.h_start": 75 * s, "protocol.h0": 75 * s, "protocol.hf": 14 * s,
         "particles.fill_height": 16 * s, "integration.neighbour": strategy,
-        "integration.r_cut": r_cut, "integration.skin": 1.0})
+        "integration.r_cut": r_cut, "integration.skin": 1.0,
+        "integration.truncation": "plain", "integration.tail": "none"})
 
 
 def measure(n: int, strategy: str, r_cut: float, threads: int) -> dict:

@@ -70,7 +70,7 @@ def scaled_scene(base: Any, n: int, steps: int, strategy: str, r_cut: float,
         "protocol.h0": g["protocol"].get("h0", h_start) * s,
         "protocol.hf": g["protocol"].get("hf", 14.0) * s,
         "integration.neighbour": strategy, "integration.r_cut": r_cut,
-        "integration.skin": skin,
+        "integration.skin": skin, "integration.truncation": "plain", "integration.tail": "none",
         **common.NO_OUTPUT,
     }
     sc = base.with_overrides(overrides)

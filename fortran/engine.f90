@@ -11,7 +11,7 @@ module engine
   use initial, only: place_particles
   use pair_forces, only: pair_forces_all, pair_forces_list, pair_forces_far, pair_energy_all
   use state, only: state_permute
-  use parallel, only: init_threads
+  use parallel, only: init_threads, par_min_loop
   use neighbours, only: nlist_t, nlist_setup, nlist_due, nlist_bin, nlist_build, &
        nb_all_pairs, nb_cells
   use walls, only: wall_forces, wall_energy
@@ -118,7 +118,7 @@ contains
     character(len=800) :: buf
     real(dp) :: r2min, d2
     associate (s => sim%s, m => sim%m)
-      !$omp parallel do if (s%n >= 4000) schedule(static)
+      !$omp parallel do if (s%n >= par_min_loop) schedule(static)
       do i = 1, s%n
         s%fx(i) = 0
         s%fy(i) = 0
@@ -175,7 +175,7 @@ contains
            s%vx, s%vy, s%fx, s%fy)
       if (m%viscous_on) call viscous_friction(s%n, s%mass, m%gamma, s%vx, s%vy, s%fx, s%fy)
       bad = huge(1)
-      !$omp parallel do if (s%n >= 4000) schedule(static) reduction(min: bad)
+      !$omp parallel do if (s%n >= par_min_loop) schedule(static) reduction(min: bad)
       do i = 1, s%n
         if (.not. (abs(s%fx(i)) <= huge(1.0_dp) .and. abs(s%fy(i)) <= huge(1.0_dp))) &
              bad = min(bad, i)
@@ -223,7 +223,7 @@ contains
                s%fx_far, s%fy_far, s%s3_far)
           s%tail_ready = .true.
         end if
-        !$omp parallel do if (s%n >= 4000) schedule(static)
+        !$omp parallel do if (s%n >= par_min_loop) schedule(static)
         do i = 1, s%n
           s%fx(i) = s%fx(i) + s%fx_far(i)
           s%fy(i) = s%fy(i) + s%fy_far(i)

@@ -3,6 +3,7 @@
 !> force comes from the dipole torques (eqs. 2.15 / 3.2 / 4.11).
 module friction
   use kinds, only: dp
+  use parallel, only: par_min_loop
   implicit none
   private
 
@@ -16,7 +17,7 @@ contains
     real(dp), intent(in) :: mass(n), big_g
     real(dp), intent(inout) :: fy(n)
     integer :: i
-    !$omp parallel do if (n >= 4000) schedule(static)
+    !$omp parallel do if (n >= par_min_loop) schedule(static)
     do i = 1, n
       fy(i) = fy(i) - big_g*mass(i)
     end do
@@ -42,7 +43,7 @@ contains
     real(dp), intent(inout) :: fx(n), fy(n)
     integer :: i
     real(dp) :: fn, ft, v, c
-    !$omp parallel do if (n >= 4000) schedule(static) default(shared) private(i, fn, ft, v, c)
+    !$omp parallel do if (n >= par_min_loop) schedule(static) default(shared) private(i, fn, ft, v, c)
     do i = 1, n
       fn = nfac(i)*s3(i)
       ft = sqrt(fx(i)**2 + fy(i)**2)

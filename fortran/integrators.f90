@@ -12,6 +12,7 @@
 !> which makes the Verlet schemes first order in v for those forces only.
 module integrators
   use kinds, only: dp
+  use parallel, only: par_min_loop
   use state, only: state_t
   use model, only: int_stormer_verlet, int_velocity_verlet, int_euler
   implicit none
@@ -30,14 +31,14 @@ contains
     if (.not. s%has_previous) return       ! v_0 is in vx, vy
     select case (method)
     case (int_stormer_verlet)
-      !$omp parallel do if (s%n >= 4000) schedule(static)
+      !$omp parallel do if (s%n >= par_min_loop) schedule(static)
       do i = 1, s%n
         s%vx(i) = (s%x(i) - s%xp(i))/h + 0.5_dp*h*s%fx(i)/s%mass(i)
         s%vy(i) = (s%y(i) - s%yp(i))/h + 0.5_dp*h*s%fy(i)/s%mass(i)
       end do
       !$omp end parallel do
     case (int_velocity_verlet)
-      !$omp parallel do if (s%n >= 4000) schedule(static)
+      !$omp parallel do if (s%n >= par_min_loop) schedule(static)
       do i = 1, s%n
         s%vx(i) = s%xp(i) + 0.5_dp*h*s%fx(i)/s%mass(i)   ! xp, yp hold v_{n-1/2} here
         s%vy(i) = s%yp(i) + 0.5_dp*h*s%fy(i)/s%mass(i)
@@ -72,7 +73,7 @@ contains
     select case (method)
     case (int_stormer_verlet)
       if (s%has_previous) then
-        !$omp parallel do if (s%n >= 4000) schedule(static) private(i, xn, yn)
+        !$omp parallel do if (s%n >= par_min_loop) schedule(static) private(i, xn, yn)
         do i = 1, s%n
           xn = 2*s%x(i) - s%xp(i) + h*h*s%fx(i)/s%mass(i)
           yn = 2*s%y(i) - s%yp(i) + h*h*s%fy(i)/s%mass(i)
@@ -88,7 +89,7 @@ contains
         end do
       end if
     case (int_velocity_verlet)
-      !$omp parallel do if (s%n >= 4000) schedule(static) private(i, ax, ay)
+      !$omp parallel do if (s%n >= par_min_loop) schedule(static) private(i, ax, ay)
       do i = 1, s%n
         ax = s%fx(i)/s%mass(i); ay = s%fy(i)/s%mass(i)
         if (s%has_previous) then

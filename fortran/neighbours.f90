@@ -9,6 +9,7 @@
 !> Walls are never truncated.
 module neighbours
   use kinds, only: dp, i8
+  use parallel, only: par_min_loop
   implicit none
   private
 
@@ -74,7 +75,7 @@ contains
     end if
     lim2 = (0.5_dp*nl%skin)**2
     d2max = 0
-    !$omp parallel do if (n >= 4000) schedule(static) reduction(max: d2max)
+    !$omp parallel do if (n >= par_min_loop) schedule(static) reduction(max: d2max)
     do i = 1, n
       d2max = max(d2max, (x(i) - nl%xref(i))**2 + (y(i) - nl%yref(i))**2)
     end do
@@ -120,7 +121,7 @@ contains
   !> Build the half list (pairs i < j within rlist) from the cell grid.
   !> Assumes nlist_bin was called for the current positions. Two passes over
   !> the particles (count, then fill at the prefix-summed offsets), both
-  !> parallel above 4000 particles; the list is the same for any thread count.
+  !> parallel from par_min_loop particles; the list is the same for any thread count.
   subroutine nlist_build(nl, n, x, y)
     type(nlist_t), intent(inout) :: nl
     integer, intent(in) :: n
@@ -128,7 +129,7 @@ contains
     integer :: i, total, dummy
     integer, allocatable :: cnt(:)
     allocate(cnt(n))
-    !$omp parallel do if (n >= 4000) schedule(static) private(i, dummy)
+    !$omp parallel do if (n >= par_min_loop) schedule(static) private(i, dummy)
     do i = 1, n
       call scan_row(i, .false., cnt(i), dummy)
     end do
@@ -142,7 +143,7 @@ contains
       deallocate(nl%nbr)
       allocate(nl%nbr(total + total/4 + 16))
     end if
-    !$omp parallel do if (n >= 4000) schedule(static) private(i, dummy)
+    !$omp parallel do if (n >= par_min_loop) schedule(static) private(i, dummy)
     do i = 1, n
       call scan_row(i, .true., dummy, nl%start(i))
     end do

@@ -9,12 +9,11 @@
 module walls
   use kinds, only: dp
   use model, only: wall_experimental, wall_infinite, wall_slab
+  use parallel, only: par_min_loop
   implicit none
   private
 
   public :: wall_forces, wall_energy
-
-  integer, parameter :: par_min = 4000    !< particles below which O(N) loops stay serial
 
 contains
 
@@ -73,7 +72,7 @@ contains
     nw = merge(4, 3, with_piston)   ! left, right, bottom (+ piston)
     lengths = [height, height, width, width]
     first_bad = huge(1)
-    !$omp parallel do if (n >= par_min) schedule(static) default(shared) &
+    !$omp parallel do if (n >= par_min_loop) schedule(static) default(shared) &
     !$omp private(i, i0, m, l, along, f) reduction(min: first_bad)
     do i0 = 1, n, chunk
       m = min(chunk, n - i0 + 1)

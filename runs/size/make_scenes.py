@@ -30,6 +30,8 @@ def main() -> None:
         nml["protocol"]["h0"] = round(75.0 * s, 6)
         nml["protocol"]["hf"] = round(14.0 * s, 6)
         nml["protocol"]["piston_speed"] = round(8.33 * MM_PER_S, 6)
+        for key in ("neighbour", "r_cut", "skin", "tail"):  # the size family stays O(N^2)
+            nml["integration"].pop(key, None)
         path = HERE / f"N{n:04d}.nml"
         nml.write(str(path), force=True)
         text = path.read_text()
