@@ -1,9 +1,9 @@
-"""Shared helpers of the bench scripts ``bench/lammps_compare.py`` and
-``bench/scaling.py``: scene building, engine runs and their timings, the
+"""Shared helpers of the bench scripts (lammps_compare, scaling, kernel,
+convergence, output_cadence): scene building, engine runs and their timings, the
 power-law fit, plain-text tables, machine load, and the optional LAMMPS
 import. Pure functions except the ones that launch runs or read files.
 
-Not a script; see the two bench scripts for the commands.
+Not a script; see the bench scripts for the commands.
 """
 from __future__ import annotations
 
@@ -121,6 +121,15 @@ def run_engine(scene: Any, out: Path, threads: int) -> Any:
 def best_of(timings: Sequence[EngineTiming]) -> EngineTiming:
     """The fastest of repeated runs (the least disturbed by other load)."""
     return min(timings, key=lambda t: t.wall_s)
+
+
+def save_table(df: Any, name: str) -> Path:
+    """Write a pandas table to bench/results/<name>, print it, return the path."""
+    out = REPO / "bench" / "results" / name
+    out.parent.mkdir(parents=True, exist_ok=True)
+    df.to_csv(out, index=False)
+    print(df.to_string(index=False))
+    return out
 
 
 # --------------------------------------------------------------------- fit

@@ -11,6 +11,7 @@ the per-step overhead of the engine, not the force cost).
 """
 from __future__ import annotations
 
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -19,6 +20,8 @@ import numpy as np
 import pandas as pd
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "bench"))
+import common  # noqa: E402  (bench/common.py)
 
 from pyorch import _engine  # noqa: E402
 from pyorch.scene import Scene  # noqa: E402
@@ -55,10 +58,7 @@ def main() -> int:
         big = part[part["dt"] >= 2.5e-4]
         slope = np.polyfit(np.log(big["dt"]), np.log(big["abs_error_D1"]), 1)[0]
         print(f"{integ}: observed order {slope:.3f} (dt >= 2.5e-4)")
-    out = ROOT / "bench/results/convergence.csv"
-    out.parent.mkdir(parents=True, exist_ok=True)
-    df.to_csv(out, index=False)
-    print(df.to_string(index=False))
+    common.save_table(df, "convergence.csv")
     return 0
 
 

@@ -12,6 +12,7 @@ pair in the Verlet list (within r_c + skin; those beyond r_c are masked).
 from __future__ import annotations
 
 import math
+import sys
 import tempfile
 from pathlib import Path
 
@@ -21,6 +22,8 @@ from pyorch import _engine
 from pyorch.scene import Scene
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "bench"))
+import common  # noqa: E402  (bench/common.py)
 CASES = [(368, "all_pairs", 7.13), (368, "verlet", 7.13), (5888, "all_pairs", 7.13),
          (10000, "verlet", 7.13), (100000, "verlet", 7.13), (100000, "verlet", 3.0)]
 
@@ -60,10 +63,7 @@ def main() -> int:
     two = df[df["threads"] == 2].set_index(["n", "strategy", "r_cut"])["s_per_pass"]
     df["speedup_2_threads"] = df.apply(
         lambda r: one[(r.n, r.strategy, r.r_cut)] / two[(r.n, r.strategy, r.r_cut)], axis=1)
-    out = ROOT / "bench/results/kernel.csv"
-    out.parent.mkdir(parents=True, exist_ok=True)
-    df.to_csv(out, index=False)
-    print(df.to_string(index=False))
+    common.save_table(df, "kernel.csv")
     return 0
 
 
