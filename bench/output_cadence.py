@@ -72,7 +72,7 @@ def compression_work(piston: pd.DataFrame) -> float:
 def n6_mean(run_dir: Path, piston: pd.DataFrame) -> tuple[float, int]:
     """Mean Voronoi n6 over the frames written during the compression, and their number."""
     from pyorch import io
-    from pyorch.analysis import frame_metrics
+    from pyorch.bed.analysis import frame_metrics
 
     steps = set(piston.loc[piston["phase"].eq(2), "step"])
     lo, hi = min(steps), max(steps)

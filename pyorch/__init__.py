@@ -2,8 +2,8 @@
 
 Scenes are namelists (``pyorch.scene``), runs go through the ``magbed``
 executable or the in-process f2py module (``pyorch.run``), run directories are
-parsed into pandas DataFrames (``pyorch.io``), analysed (``pyorch.analysis``)
-and plotted (``pyorch.plots``).
+parsed into pandas DataFrames (``pyorch.io``), analysed (``pyorch.bed.analysis``)
+and plotted (``pyorch.bed.plots``).
 
 Units everywhere: lengths in the big-particle diameter D1, times in
 T = sqrt(D1/g), forces in the big-particle weight m1*g (see README).

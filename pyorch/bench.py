@@ -120,7 +120,7 @@ def measure(r: Run) -> dict[str, Any]:
     out["F_max"] = float(pis["F_piston"].iloc[-1])
     md = r.mean_distance()
     out["D_hat"] = float(md["D_hat"].iloc[-1])
-    from pyorch.analysis import frame_metrics
+    from pyorch.bed.analysis import frame_metrics
 
     frame = io.frame_at(r.frames())
     out["n6"] = float(frame_metrics(frame)["n6"])

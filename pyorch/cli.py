@@ -39,7 +39,7 @@ def _parser() -> argparse.ArgumentParser:
     pl.add_argument("run_dir", type=Path)
     pl.add_argument("--out", type=Path, default=None)
     pl.add_argument("--no-structure", action="store_true",
-                    help="skip the Voronoi/force figures of pyorch.analyze.plot_run")
+                    help="skip the Voronoi/force figures of pyorch.bed.analyze.plot_run")
 
     an = sub.add_parser("analyze", help="structure/force tables of a run directory as CSV")
     an.add_argument("run_dir", type=Path)
@@ -84,18 +84,18 @@ def main(argv: list[str] | None = None) -> int:
 
             return main_bench(args)
         if args.cmd == "plot":
-            from pyorch.plots import save_run_plots
+            from pyorch.bed.plots import save_run_plots
 
             for p in save_run_plots(args.run_dir, args.out):
                 print(p)
             if not args.no_structure:
-                from pyorch.analyze import plot_run
+                from pyorch.bed.analyze import plot_run
 
                 for p in plot_run(args.run_dir, args.out):
                     print(p)
             return 0
         if args.cmd == "analyze":
-            from pyorch.analyze import write_tables
+            from pyorch.bed.analyze import write_tables
 
             for p in write_tables(args.run_dir, args.out):
                 print(p)
@@ -124,7 +124,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         meta = result.meta
         print(f"{out}: {meta['status']}, {meta['steps_done']} steps")
         if not args.no_plots:
-            from pyorch.plots import save_run_plots
+            from pyorch.bed.plots import save_run_plots
 
             save_run_plots(out)
         return 0
@@ -140,7 +140,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     print(f"{out}: {meta['status']}, {meta['steps_done']} steps, "
           f"{meta['wall_time_s']:.2f} s ({1e6 * meta['wall_time_per_step_s']:.1f} us/step)")
     if not args.no_plots:
-        from pyorch.plots import save_run_plots
+        from pyorch.bed.plots import save_run_plots
 
         paths = save_run_plots(out)
         print(f"{len(paths)} plots in {out / 'plots'}")

@@ -174,7 +174,7 @@ def _nearest_row(df: pd.DataFrame, step: int) -> pd.Series:
 
 def _frame_metrics_near(run: Any, step: int) -> dict[str, float]:
     """n5, n6, n7, Psi6 of the particle frame nearest to ``step`` (NaN without frames)."""
-    from pyorch.analysis import frame_metrics
+    from pyorch.bed.analysis import frame_metrics
     from pyorch.io import frame_at
 
     if not (run.dir / "particles.dat").is_file():

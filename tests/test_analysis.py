@@ -1,4 +1,4 @@
-"""Known-answer tests for pyorch.analysis (lattices, Poisson points, synthetic data)."""
+"""Known-answer tests for pyorch.bed.analysis (lattices, Poisson points, synthetic data)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import pandas as pd
 import pytest
 from astropy.stats import knuth_bin_width
 
-from pyorch import analysis as an
+from pyorch.bed import analysis as an
 
 SQRT3 = np.sqrt(3.0)
 

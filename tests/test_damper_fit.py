@@ -1,4 +1,4 @@
-"""Granular damper analysis (pyorch.damper) on synthetic records with known parameters.
+"""Granular damper analysis (pyorch.bed.damper) on synthetic records with known parameters.
 
 Everything is deterministic (fixed seeds) and independent of the engine.
 """
@@ -13,7 +13,7 @@ import pandas as pd
 import pytest
 from scipy.signal import find_peaks
 
-from pyorch import damper as dmp
+from pyorch.bed import damper as dmp
 
 THESIS = {"a": 0.17, "w": 1.05, "g0": -1.0, "z0": 1.0, "v0": 0.0}  # thesis Fig. 5.12
 SIGMA = 0.01

@@ -1,4 +1,4 @@
-"""Structure/force analysis of run directories (pyorch.analyze) and its figures (pyorch.structure_plots).
+"""Structure/force analysis of run directories (pyorch.bed.analyze) and its figures (pyorch.bed.structure_plots).
 
 A small real run (80 particles, ~8500 steps, < 1 s) is made once per module through the magbed
 executable; bi-disperse runs are faked by rewriting the species column of its particles.dat (and the
@@ -17,9 +17,10 @@ from matplotlib.collections import PolyCollection
 from matplotlib.figure import Figure
 from matplotlib.quiver import Quiver
 
-from pyorch import analysis, io
-from pyorch import analyze as az
-from pyorch import structure_plots as sp
+from pyorch import io
+from pyorch.bed import analysis
+from pyorch.bed import analyze as az
+from pyorch.bed import structure_plots as sp
 from pyorch.cli import main
 from pyorch.run import run
 from pyorch.scene import Scene

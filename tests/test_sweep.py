@@ -279,11 +279,11 @@ def test_cli_hook_with_list_values(tmp_path, capsys):
 
 
 def test_metrics_named_in_the_spec_are_resolved():
-    from pyorch.damper import sweep_metrics
+    from pyorch.bed.damper import sweep_metrics
     from pyorch.sweep import Sweep, resolve_metrics
 
-    assert resolve_metrics("pyorch.damper:sweep_metrics") is sweep_metrics
+    assert resolve_metrics("pyorch.bed.damper:sweep_metrics") is sweep_metrics
     with pytest.raises(SceneError, match="expected 'package.module:function'"):
-        resolve_metrics("pyorch.damper")
+        resolve_metrics("pyorch.bed.damper")
     sw = Sweep.from_toml(Path(__file__).resolve().parents[1] / "runs/sweeps/damper_mass.toml")
     assert sw.metrics is sweep_metrics and len(sw.points()) == 12

@@ -6,7 +6,7 @@ be garbage collected (no ``plt.close`` needed).
 
 Units: lengths in D1 (big-particle diameter), forces in m1 g; normalised forces are dimensionless.
 
-One run (inputs from :mod:`pyorch.io` / :mod:`pyorch.analyze`)
+One run (inputs from :mod:`pyorch.io` / :mod:`pyorch.bed.analyze`)
     :func:`voronoi_snapshot` (Fig. 4.5), :func:`force_snapshot` (Fig. 4.20),
     :func:`force_vectors` (Fig. 4.23), :func:`fluctuation_map` (Fig. 4.24, eq. 4.35),
     :func:`force_pdf` (Figs. 4.21-4.22), :func:`order_vs_time` (Fig. 4.9), :func:`r6_vs_time` (Fig. 4.10)
@@ -42,7 +42,7 @@ from matplotlib.patches import Circle, Patch, Rectangle
 from scipy.optimize import OptimizeWarning
 from scipy.spatial import Voronoi
 
-from pyorch import analysis
+from pyorch.bed import analysis
 
 __all__ = [
     "voronoi_snapshot",
@@ -226,7 +226,7 @@ def voronoi_snapshot(frame: pd.DataFrame, width: float, height: float, piston_h:
     particle centres, drawn dashed) are filled: cells with <= 5 sides grey, hexagons green, darker the
     more regular (R6 of eq. 4.25 on the colour bar, range :data:`R6_RANGE`), >= 7 sides red. The
     particles are drawn to scale on top, big (species 1) black, small blue (further species: see
-    :func:`species_colour`). Side counts and R6 come from :func:`pyorch.analysis.voronoi_cells`.
+    :func:`species_colour`). Side counts and R6 come from :func:`pyorch.bed.analysis.voronoi_cells`.
 
     Parameters
     ----------
@@ -321,7 +321,7 @@ def force_vectors(frame: pd.DataFrame, width: float, height: float, piston_h: fl
     only particles whose Voronoi cell is kept by Algorithm 4.3 get an arrow (``interior_only``).
 
     The components are read from ``fmx``, ``fmy`` (magnetic force, m1 g; see
-    :func:`pyorch.analyze.magnetic_force_vectors`). Without them the total force ``fx``, ``fy`` is used
+    :func:`pyorch.bed.analyze.magnetic_force_vectors`). Without them the total force ``fx``, ``fy`` is used
     instead, normalised by its own per-species maximum (``scale`` ignored), and the title says so
     (particles.dat holds the total force, which includes gravity and friction and vanishes for particles
     held by static friction).
@@ -353,7 +353,7 @@ def fluctuation_map(frame_fluct: pd.DataFrame, width: float, height: float,
     r"""Relative force fluctuation :math:`|F_i^k - \bar F_i| / \bar F_i` per particle (Fig. 4.24, eq. 4.35).
 
     ``frame_fluct`` is one frame with ``x``, ``y`` and a ``fluctuation`` column (e.g. a frame merged with
-    :func:`pyorch.analysis.force_fluctuations`). Without that column it is computed here from ``fmag``
+    :func:`pyorch.bed.analysis.force_fluctuations`). Without that column it is computed here from ``fmag``
     (the magnetic force magnitude) with the Voronoi interior mask: averages per species over the kept
     particles, 0 for the others, as in the thesis.
 
@@ -384,7 +384,7 @@ def force_pdf(values_df: pd.DataFrame, *, column: str = "F_norm", by: str | None
     """Histogram (top) and probability density (bottom) of forces per species (Figs. 4.21-4.22).
 
     ``values_df`` is either raw values (a ``column`` of forces and optional ``species``), binned here
-    with :func:`pyorch.analysis.force_histogram` (Knuth's rule on all values, common bins), or already
+    with :func:`pyorch.bed.analysis.force_histogram` (Knuth's rule on all values, common bins), or already
     such a histogram table (columns ``species``, ``left``, ``right``, ``count``, ``pdf_share``).
     Top: counts stacked by species. Bottom: the overall PDF (black) and each species' share of it
     (``count / (N width)``, the shares add up to the overall PDF).
@@ -463,7 +463,7 @@ def order_vs_time(ts_df: pd.DataFrame, *, x: str | None = None,
     Parameters
     ----------
     ts_df : pandas.DataFrame
-        One row per frame (:func:`pyorch.analysis.time_series` / ``analyze_run(...)["time_series"]``):
+        One row per frame (:func:`pyorch.bed.analysis.time_series` / ``analyze_run(...)["time_series"]``):
         ``n5``, ``n6``, ``n7``, ``Psi6`` (optional ``Psi6_local``, ``phase`` for shading).
     x : str, optional
         Column for the abscissa (e.g. ``y_P_over_y_F``); default the index (t).
@@ -496,7 +496,7 @@ def r6_vs_time(ts_df: pd.DataFrame, *, x: str | None = None,
     """Mean hexagon regularity (solid) and mean +- one standard deviation (dashed) (thesis Fig. 4.10).
 
     ``ts_df`` needs ``R6_mean`` and ``R6_std`` (over interior hexagons, see
-    :func:`pyorch.analysis.frame_metrics`); ``x``, ``piston_df`` as in :func:`order_vs_time`.
+    :func:`pyorch.bed.analysis.frame_metrics`); ``x``, ``piston_df`` as in :func:`order_vs_time`.
     """
     xs, xlabel = _abscissa(ts_df, x)
     fig, axs = _figure((6.4, 3.8))
@@ -596,7 +596,7 @@ def fmax_vs_R(df: pd.DataFrame, fits: Mapping[Any, Any] | Literal["auto"] | None
     df : pandas.DataFrame
         One row per run: ``R``, ``F_max`` [m1 g], optional ``a``.
     fits : "auto", mapping or None
-        ``"auto"``: :func:`pyorch.analysis.fit_biexponential` of the normalised points of every group with
+        ``"auto"``: :func:`pyorch.bed.analysis.fit_biexponential` of the normalised points of every group with
         >= 5 distinct R (Table 4.5); a mapping ``a -> BiexponentialFit`` (key ``None`` without an ``a``
         column) draws given fits; ``None``: no fit lines. Fit parameters are written in the legend.
     """

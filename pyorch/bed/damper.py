@@ -1155,7 +1155,7 @@ def plot_phase(
 
 def sweep_metrics(run: Any) -> dict[str, float]:
     """Per-point metrics of a damper run for ``pyorch.sweep`` (TOML
-    ``metrics = "pyorch.damper:sweep_metrics"``): rest height before the nudge
+    ``metrics = "pyorch.bed.damper:sweep_metrics"``): rest height before the nudge
     [D1], oscillation amplitude after it [D1], damping ratio, damped angular
     frequency [1/T] and peak count from the log decrement of the free phase.
     NaN where the record has too few peaks."""

@@ -11,7 +11,7 @@ Tables of :func:`analyze_run` (lengths D1, times T, forces m1 g):
     ``F_piston``, ``phi``, ``phase``); the stroke ``y_P = H0 - H`` (``H0``: piston height at the start of
     the compression) and ``y_P_over_y_F`` (``y_F``: largest stroke of the compress/hold/expand cycle;
     NaN without a compression phase); ``D_hat`` (nearest mean_distance.dat row); and
-    :func:`pyorch.analysis.frame_metrics` (``n_interior``, ``n_le4`` ... ``n_ge8``, ``R6_mean``,
+    :func:`pyorch.bed.analysis.frame_metrics` (``n_interior``, ``n_le4`` ... ``n_ge8``, ``R6_mean``,
     ``R6_std``, ``Psi6``, ``Psi6_local``, ``delta``, ``delta_<species>``).
 ``min_distance``
     One row per frame: ``step``, ``t``, ``H``, ``delta`` (min over particles of ``H - y``, centre to
@@ -24,7 +24,7 @@ Tables of :func:`analyze_run` (lengths D1, times T, forces m1 g):
     outside) and ``fmx``, ``fmy`` (magnetic force components written by the engine, see
     :func:`magnetic_force_vectors`; NaN when that is not possible).
 ``force_histogram``
-    :func:`pyorch.analysis.force_histogram` of ``F_norm`` by species at maximum compression (Knuth bins
+    :func:`pyorch.bed.analysis.force_histogram` of ``F_norm`` by species at maximum compression (Knuth bins
     common to all species; counts sum to N), with its ``step``.
 ``force_species``
     Per species at maximum compression: ``species``, ``diameter``, ``n``, ``F_mean``, ``F_std``,
@@ -40,7 +40,7 @@ Tables of :func:`analyze_run` (lengths D1, times T, forces m1 g):
     ``Psi6``, ``Psi6_local``, ``R6_mean``, ``R6_std``, ``delta``.
 
 Without particles.dat only the summary is produced, from piston.dat and mean_distance.dat (a message
-on stderr says so). The across-run table of :mod:`pyorch.structure_plots` (one row per run, columns
+on stderr says so). The across-run table of :mod:`pyorch.bed.structure_plots` (one row per run, columns
 ``R``, ``a``, ``n5``, ``n6``, ``n7``, ``Psi6``, ``F_max``, ...) is
 ``pd.DataFrame([analyze_run(d)["summary"] for d in run_dirs])``.
 """
@@ -53,8 +53,9 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from pyorch import RunError, analysis, io
-from pyorch import structure_plots as sp
+from pyorch import RunError, io
+from pyorch.bed import analysis
+from pyorch.bed import structure_plots as sp
 
 __all__ = ["analyze_run", "write_tables", "plot_run", "run_geometry", "max_compression_step",
            "magnetic_force_vectors"]
