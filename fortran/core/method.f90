@@ -1,0 +1,118 @@
+!> The one interface between the shared runner and a simulation method.
+!>
+!> A method (time-stepped MD, event-driven, DSMC, ...) extends method_t and
+!> implements its deferred procedures; the runner (module runner) owns
+!> everything else: the run directory, scene.nml, run.json, checkpoints and
+!> resume, signals, --stop-at, progress lines and exit codes. The runner
+!> calls, in this order:
+!>   load -> [write_scene, open_outputs] -> { advance, [save_state] }* -> finish -> close_outputs
+!> and on resume: load -> restore_state -> (files cut back) -> open_outputs(append) -> ...
+!> `advance` performs one unit of work (a time step, an event, a DSMC step)
+!> and writes the rows that are due; `counters` tells the runner how far the
+!> run is (done/total units, simulated time) so the runner knows when to stop.
+module method
+  use kinds, only: dp, i8
+  use errors, only: status_t
+  implicit none
+  private
+
+  public :: method_t, fname_len, max_out_files
+
+  integer, parameter :: fname_len = 32      !< length of an output file name
+  integer, parameter :: max_out_files = 8   !< output files per method (checkpoint sizes)
+
+  type, abstract :: method_t
+    logical :: writing = .false.            !< outputs are open (set by open_outputs/close_outputs)
+  contains
+    procedure(load_i), deferred :: load
+    procedure(write_scene_i), deferred :: write_scene
+    procedure(open_i), deferred :: open_outputs
+    procedure(advance_i), deferred :: advance
+    procedure(advance_i), deferred :: finish
+    procedure(close_i), deferred :: close_outputs
+    procedure(files_i), deferred :: output_files
+    procedure(save_i), deferred :: save_state
+    procedure(restore_i), deferred :: restore_state
+    procedure(counters_i), deferred :: counters
+    procedure(text_i), deferred :: progress_text
+    procedure(json_i), deferred :: json_fields
+  end type method_t
+
+  abstract interface
+    !> Read and validate the scene at `path`, build the initial state. Writes nothing.
+    subroutine load_i(self, path, st)
+      import :: method_t, status_t
+      class(method_t), intent(inout) :: self
+      character(len=*), intent(in) :: path
+      type(status_t), intent(inout) :: st
+    end subroutine load_i
+    !> Write the fully resolved scene (every key, its value and unit) to `path`.
+    subroutine write_scene_i(self, path, st)
+      import :: method_t, status_t
+      class(method_t), intent(in) :: self
+      character(len=*), intent(in) :: path
+      type(status_t), intent(inout) :: st
+    end subroutine write_scene_i
+    !> Open the output files in `dir`: fresh with headers, or appended to after a resume.
+    subroutine open_i(self, dir, append, st)
+      import :: method_t, status_t
+      class(method_t), intent(inout) :: self
+      character(len=*), intent(in) :: dir
+      logical, intent(in) :: append
+      type(status_t), intent(inout) :: st
+    end subroutine open_i
+    !> One unit of work (advance) / the final rows of the run (finish).
+    subroutine advance_i(self, st)
+      import :: method_t, status_t
+      class(method_t), intent(inout) :: self
+      type(status_t), intent(inout) :: st
+    end subroutine advance_i
+    !> Flush (and, unless flush_only, close) the output files.
+    subroutine close_i(self, flush_only, st)
+      import :: method_t, status_t
+      class(method_t), intent(inout) :: self
+      logical, intent(in) :: flush_only
+      type(status_t), intent(inout) :: st
+    end subroutine close_i
+    !> Names of the output files this scene writes (relative to the run directory).
+    subroutine files_i(self, names, n)
+      import :: method_t, fname_len, max_out_files
+      class(method_t), intent(in) :: self
+      character(len=fname_len), intent(out) :: names(max_out_files)
+      integer, intent(out) :: n
+    end subroutine files_i
+    !> The complete dynamic state, on an open unformatted stream unit.
+    subroutine save_i(self, u, st)
+      import :: method_t, status_t
+      class(method_t), intent(in) :: self
+      integer, intent(in) :: u
+      type(status_t), intent(inout) :: st
+    end subroutine save_i
+    subroutine restore_i(self, u, st)
+      import :: method_t, status_t
+      class(method_t), intent(inout) :: self
+      integer, intent(in) :: u
+      type(status_t), intent(inout) :: st
+    end subroutine restore_i
+    !> Units of work done and in the whole run, simulated time [method's time unit].
+    subroutine counters_i(self, done, total, t)
+      import :: method_t, i8, dp
+      class(method_t), intent(in) :: self
+      integer(i8), intent(out) :: done, total
+      real(dp), intent(out) :: t
+    end subroutine counters_i
+    !> Two words for progress lines: a phase name and one number (e.g. the piston force).
+    function text_i(self) result(s)
+      import :: method_t
+      class(method_t), intent(in) :: self
+      character(len=:), allocatable :: s
+    end function text_i
+    !> The method's own run.json members, each line '  "key": value,' (the runner closes the object).
+    subroutine json_i(self, u)
+      import :: method_t
+      class(method_t), intent(in) :: self
+      integer, intent(in) :: u
+    end subroutine json_i
+  end interface
+
+end module method

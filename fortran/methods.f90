@@ -1,0 +1,37 @@
+!> The registry of methods: which type runs which scene kind. Adding a kind
+!> = one line here (and its folder, scene groups and pyorch subpackage).
+module methods
+  use errors, only: status_t, set_error, exit_bad_input
+  use method, only: method_t
+  use scene_input, only: kind_len, read_kind
+  use bed_method, only: bed_t
+  use oscillator, only: oscillator_t
+  implicit none
+  private
+
+  public :: method_for_scene, kind_names
+
+  character(len=*), parameter :: kind_names = "'magnet_bed' | 'oscillator'"
+
+contains
+
+  !> Allocate the method that runs the scene at `path` (from its &scene kind).
+  subroutine method_for_scene(path, m, st)
+    character(len=*), intent(in) :: path
+    class(method_t), allocatable, intent(out) :: m
+    type(status_t), intent(inout) :: st
+    character(len=kind_len) :: kind
+    call read_kind(path, kind, st)
+    if (st%code /= 0) return
+    select case (trim(kind))
+    case ('magnet_bed')
+      allocate(bed_t :: m)
+    case ('oscillator')
+      allocate(oscillator_t :: m)
+    case default
+      call set_error(st, exit_bad_input, trim(path)//": &scene kind = '"//trim(kind)// &
+           "': allowed "//kind_names)
+    end select
+  end subroutine method_for_scene
+
+end module methods

@@ -1,0 +1,389 @@
+!> Kind 'oscillator': N independent damped harmonic oscillators,
+!>   x'' = -omega^2 x - 2 zeta omega x',   0 <= zeta < 1 (under-damped),
+!> with the exact solution x(t) = e^{-zeta omega t} (x0 cos(w_d t) + (v0 + zeta omega x0)/w_d sin(w_d t)),
+!> w_d = omega sqrt(1 - zeta^2). It is the second method behind the runner's
+!> interface (module method) and the validation kind of the test suite:
+!> integrator orders, exact solutions, checkpoints and resume on a state
+!> that has nothing of the bed.
+!>
+!> Units: any consistent length L and time tau chosen by the user (omega in
+!> rad/tau, t in tau, x in L, v in L/tau); unit mass, energies in L^2/tau^2.
+!> Integrators: 'euler' (explicit, order 1), 'velocity_verlet' (Strang
+!> splitting: exact damping half-steps around kick-drift-kick, order 2),
+!> 'exact' (the analytic propagator: round-off only).
+module oscillator
+  use kinds, only: dp, i8
+  use errors, only: status_t, set_error, exit_bad_input, exit_io, exit_numerical, msg_len
+  use method, only: method_t, fname_len, max_out_files
+  use tables, only: table_t, table_open, table_flush, table_close, table_check, rfmt
+  use scene_input, only: kind_len, check_real, check_int, check_choice, put_real, put_int, &
+       put_str, quoted, int_str
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
+  implicit none
+  private
+
+  public :: oscillator_t
+
+  integer, parameter :: name_len = 32
+  integer(i8), parameter :: max_steps = 4000000000000000000_i8   !< 4e18 < huge(i8)
+
+  type, extends(method_t) :: oscillator_t
+    ! &scene
+    character(len=kind_len) :: kind = 'oscillator'
+    character(len=128) :: title = 'untitled'
+    ! &oscillator
+    integer(i8) :: n = 1                    !< number of oscillators
+    real(dp) :: omega = 1.0_dp              !< natural angular frequency [rad/tau]
+    real(dp) :: zeta = 0.0_dp               !< damping ratio [1], 0 <= zeta < 1
+    real(dp) :: amplitude = 1.0_dp          !< initial amplitude [L]
+    integer(i8) :: seed = 1                 !< RNG seed of the initial phases
+    character(len=name_len) :: integrator = 'velocity_verlet'
+    real(dp) :: dt = 1.0e-2_dp              !< time step [tau]
+    real(dp) :: t_end = 10.0_dp             !< run length [tau]
+    ! &output (cadences in steps, 0 = file off)
+    integer(i8) :: trajectory_every = 10
+    integer(i8) :: energy_every = 10
+    integer(i8) :: checkpoint_every = 0
+    ! state
+    real(dp), allocatable :: x(:), v(:), x0(:), v0(:)
+    integer(i8) :: step = 0
+    integer(i8) :: n_steps = 0
+    type(table_t) :: traj, energy
+  contains
+    procedure :: load, write_scene, open_outputs, advance, finish, close_outputs, output_files
+    procedure :: save_state, restore_state, counters, progress_text, json_fields
+  end type oscillator_t
+
+contains
+
+  subroutine load(self, path, st)
+    class(oscillator_t), intent(inout) :: self
+    character(len=*), intent(in) :: path
+    type(status_t), intent(inout) :: st
+    character(len=kind_len) :: kind
+    character(len=128) :: title
+    integer(i8) :: n, seed, trajectory_every, energy_every, checkpoint_every, progress_every
+    real(dp) :: omega, zeta, amplitude, dt, t_end
+    character(len=name_len) :: integrator
+    integer :: u, ios
+    character(len=msg_len) :: iom
+    namelist /scene/ kind, title
+    namelist /oscillator/ n, omega, zeta, amplitude, seed, integrator, dt, t_end
+    namelist /output/ trajectory_every, energy_every, checkpoint_every, progress_every
+    kind = self%kind; title = self%title
+    n = self%n; omega = self%omega; zeta = self%zeta; amplitude = self%amplitude
+    seed = self%seed; integrator = self%integrator; dt = self%dt; t_end = self%t_end
+    trajectory_every = self%trajectory_every; energy_every = self%energy_every
+    checkpoint_every = self%checkpoint_every; progress_every = 0
+    open(newunit=u, file=path, status='old', action='read', iostat=ios, iomsg=iom)
+    if (ios /= 0) then
+      call set_error(st, exit_io, trim(path)//': cannot open scene file: '//trim(iom))
+      return
+    end if
+    read(u, nml=scene, iostat=ios, iomsg=iom)
+    call group('scene', .true.)
+    rewind(u); read(u, nml=oscillator, iostat=ios, iomsg=iom)
+    call group('oscillator', .true.)
+    rewind(u); read(u, nml=output, iostat=ios, iomsg=iom)
+    call group('output', .false.)
+    close(u)
+    if (st%code /= 0) return
+    self%kind = kind; self%title = title
+    self%n = n; self%omega = omega; self%zeta = zeta; self%amplitude = amplitude
+    self%seed = seed; self%integrator = integrator; self%dt = dt; self%t_end = t_end
+    self%trajectory_every = trajectory_every; self%energy_every = energy_every
+    self%checkpoint_every = checkpoint_every
+    call validate(self, path, st)
+    if (st%code /= 0) return
+    self%n_steps = nint(self%t_end/self%dt, i8)
+    call initial_state(self)
+  contains
+    subroutine group(name, required)
+      character(len=*), intent(in) :: name
+      logical, intent(in) :: required
+      if (ios > 0) then
+        call set_error(st, exit_bad_input, trim(path)//': &'//name//': cannot read group: '// &
+             trim(iom))
+      else if (ios < 0 .and. required) then
+        call set_error(st, exit_bad_input, trim(path)//': missing group &'//name)
+      end if
+    end subroutine group
+  end subroutine load
+
+  subroutine validate(self, path, st)
+    class(oscillator_t), intent(in) :: self
+    character(len=*), intent(in) :: path
+    type(status_t), intent(inout) :: st
+    character(len=name_len), parameter :: integrators(3) = [character(len=name_len) :: &
+         'euler', 'velocity_verlet', 'exact']
+    call check_choice(path, 'scene', 'kind', self%kind, ['oscillator'], st)
+    call check_int(path, 'oscillator', 'n', self%n, 1_i8, 10000000_i8, st)
+    call check_real(path, 'oscillator', 'omega', self%omega, 0.0_dp, 1.0e6_dp, .false., st)
+    call check_real(path, 'oscillator', 'zeta', self%zeta, 0.0_dp, 0.999_dp, .true., st)
+    call check_real(path, 'oscillator', 'amplitude', self%amplitude, 0.0_dp, 1.0e12_dp, &
+         .false., st)
+    call check_int(path, 'oscillator', 'seed', self%seed, 1_i8, 2147483647_i8, st)
+    call check_choice(path, 'oscillator', 'integrator', self%integrator, integrators, st)
+    call check_real(path, 'oscillator', 't_end', self%t_end, 0.0_dp, 1.0e12_dp, .false., st)
+    if (st%code /= 0) return
+    call check_real(path, 'oscillator', 'dt', self%dt, 0.0_dp, self%t_end, .false., st)
+    if (st%code /= 0) return
+    if (self%t_end/self%dt > real(max_steps, dp)) call set_error(st, exit_bad_input, &
+         trim(path)//': &oscillator t_end/dt: more than 4e18 steps')
+    call check_int(path, 'output', 'trajectory_every', self%trajectory_every, 0_i8, max_steps, st)
+    call check_int(path, 'output', 'energy_every', self%energy_every, 0_i8, max_steps, st)
+    call check_int(path, 'output', 'checkpoint_every', self%checkpoint_every, 0_i8, max_steps, st)
+  end subroutine validate
+
+  !> x = A cos(phase), v = -A omega sin(phase), phases uniform from the seed.
+  subroutine initial_state(self)
+    class(oscillator_t), intent(inout) :: self
+    integer :: k
+    integer, allocatable :: put(:)
+    real(dp), allocatable :: phase(:)
+    real(dp), parameter :: two_pi = 6.283185307179586476925286766559_dp
+    call random_seed(size=k)
+    allocate(put(k))
+    put = int(self%seed) + 7919*[(k, k = 1, size(put))]
+    call random_seed(put=put)
+    allocate(phase(self%n))
+    call random_number(phase)
+    phase = two_pi*phase
+    self%x0 = self%amplitude*cos(phase)
+    self%v0 = -self%amplitude*self%omega*sin(phase)
+    self%x = self%x0
+    self%v = self%v0
+    self%step = 0
+  end subroutine initial_state
+
+  subroutine write_scene(self, path, st)
+    class(oscillator_t), intent(in) :: self
+    character(len=*), intent(in) :: path
+    type(status_t), intent(inout) :: st
+    integer :: u, ios
+    character(len=msg_len) :: iom
+    open(newunit=u, file=path, status='replace', action='write', iostat=ios, iomsg=iom)
+    if (ios /= 0) then
+      call set_error(st, exit_io, trim(path)//': cannot write resolved scene: '//trim(iom))
+      return
+    end if
+    write(u, '(a)') '! Resolved scene (every key): kind oscillator. Units: length L, time tau '// &
+         '(user''s choice), unit mass.'
+    write(u, '(a)') '&scene'
+    call put_str(u, 'kind', self%kind, '')
+    call put_str(u, 'title', self%title, '')
+    write(u, '(a)') '/'
+    write(u, '(a)') '&oscillator'
+    call put_int(u, 'n', self%n, 'oscillators')
+    call put_real(u, 'omega', self%omega, 'rad/tau')
+    call put_real(u, 'zeta', self%zeta, 'damping ratio [1]')
+    call put_real(u, 'amplitude', self%amplitude, 'L')
+    call put_int(u, 'seed', self%seed, 'initial phases')
+    call put_str(u, 'integrator', self%integrator, '')
+    call put_real(u, 'dt', self%dt, 'tau')
+    call put_real(u, 't_end', self%t_end, 'tau')
+    write(u, '(a)') '/'
+    write(u, '(a)') '&output'
+    call put_int(u, 'trajectory_every', self%trajectory_every, 'steps (0 = off)')
+    call put_int(u, 'energy_every', self%energy_every, 'steps (0 = off)')
+    call put_int(u, 'checkpoint_every', self%checkpoint_every, 'steps (0 = none)')
+    write(u, '(a)', iostat=ios, iomsg=iom) '/'
+    if (ios == 0) flush(u, iostat=ios, iomsg=iom)
+    if (ios == 0) then
+      close(u, iostat=ios, iomsg=iom)
+    else
+      close(u)
+    end if
+    if (ios /= 0) call set_error(st, exit_io, trim(path)//': write failed: '//trim(iom))
+  end subroutine write_scene
+
+  subroutine open_outputs(self, dir, append, st)
+    class(oscillator_t), intent(inout) :: self
+    character(len=*), intent(in) :: dir
+    logical, intent(in) :: append
+    type(status_t), intent(inout) :: st
+    character(len=*), parameter :: units = 'Units: length L, time tau (omega in rad/tau), unit mass.'
+    if (self%trajectory_every > 0) call table_open(self%traj, dir, 'trajectory.dat', &
+         '# trajectory.dat: damped harmonic oscillators. '//units, &
+         '# step t[tau] id x[L] v[L/tau]', append, st)
+    if (self%energy_every > 0) call table_open(self%energy, dir, 'energy.dat', &
+         '# energy.dat: energies summed over the oscillators. '//units, &
+         '# step t[tau] E_kin[L^2/tau^2] E_pot[L^2/tau^2] E_total[L^2/tau^2]', append, st)
+    self%writing = st%code == 0
+  end subroutine open_outputs
+
+  subroutine output_files(self, names, n)
+    class(oscillator_t), intent(in) :: self
+    character(len=fname_len), intent(out) :: names(max_out_files)
+    integer, intent(out) :: n
+    n = 0
+    names = ''
+    if (self%trajectory_every > 0) then
+      n = n + 1; names(n) = 'trajectory.dat'
+    end if
+    if (self%energy_every > 0) then
+      n = n + 1; names(n) = 'energy.dat'
+    end if
+  end subroutine output_files
+
+  !> Rows due at the current step (every `every` steps, and at the last).
+  subroutine write_rows(self, last, st)
+    class(oscillator_t), intent(inout) :: self
+    logical, intent(in) :: last
+    type(status_t), intent(inout) :: st
+    integer :: ios
+    integer(i8) :: i
+    real(dp) :: t, ek, ep
+    character(len=msg_len) :: iom
+    if (.not. self%writing) return
+    t = real(self%step, dp)*self%dt
+    iom = ''
+    if (due(self%trajectory_every)) then
+      do i = 1, self%n
+        write(self%traj%u, '(i0,1x,'//rfmt//',1x,i0,2(1x,'//rfmt//'))', iostat=ios, iomsg=iom) &
+             self%step, t, i, self%x(i), self%v(i)
+        if (ios /= 0) exit
+      end do
+      call table_check(self%traj, ios, iom, st)
+    end if
+    if (due(self%energy_every)) then
+      ek = 0.5_dp*sum(self%v**2)
+      ep = 0.5_dp*self%omega**2*sum(self%x**2)
+      write(self%energy%u, '(i0,4(1x,'//rfmt//'))', iostat=ios, iomsg=iom) self%step, t, ek, ep, &
+           ek + ep
+      call table_check(self%energy, ios, iom, st)
+    end if
+  contains
+    logical function due(every)
+      integer(i8), intent(in) :: every
+      due = every > 0
+      if (due) due = last .or. mod(self%step, every) == 0
+    end function due
+  end subroutine write_rows
+
+  subroutine advance(self, st)
+    class(oscillator_t), intent(inout) :: self
+    type(status_t), intent(inout) :: st
+    real(dp) :: h, w2, damp
+    call write_rows(self, .false., st)
+    if (st%code /= 0) return
+    h = self%dt
+    w2 = self%omega**2
+    select case (trim(self%integrator))
+    case ('euler')
+      call euler_step(self%x, self%v, h, w2, 2.0_dp*self%zeta*self%omega)
+    case ('velocity_verlet')
+      damp = exp(-self%zeta*self%omega*h)     ! exact damping over h/2: v' = -2 zeta omega v
+      self%v = damp*self%v
+      self%v = self%v - 0.5_dp*h*w2*self%x
+      self%x = self%x + h*self%v
+      self%v = self%v - 0.5_dp*h*w2*self%x
+      self%v = damp*self%v
+    case ('exact')
+      call exact(self, real(self%step + 1, dp)*h, self%x, self%v)
+    end select
+    self%step = self%step + 1
+    if (.not. all(ieee_is_finite(self%x)) .or. .not. all(ieee_is_finite(self%v))) then
+      call set_error(st, exit_numerical, 'oscillator: non-finite state at step '// &
+           int_str(self%step)//' (dt = '//trim(adjustl(rstr(self%dt)))//' tau; explicit Euler '// &
+           'grows as (1 + (omega dt)^2)^(n/2))')
+    end if
+  end subroutine advance
+
+  pure subroutine euler_step(x, v, h, w2, c)
+    real(dp), intent(inout) :: x(:), v(:)
+    real(dp), intent(in) :: h, w2, c
+    real(dp) :: a(size(x))
+    a = -w2*x - c*v
+    x = x + h*v
+    v = v + h*a
+  end subroutine euler_step
+
+  !> The analytic solution at time t from the initial state.
+  subroutine exact(self, t, x, v)
+    class(oscillator_t), intent(in) :: self
+    real(dp), intent(in) :: t
+    real(dp), intent(out) :: x(:), v(:)
+    real(dp) :: wd, e, c, s, zw
+    zw = self%zeta*self%omega
+    wd = self%omega*sqrt(1.0_dp - self%zeta**2)
+    e = exp(-zw*t)
+    c = cos(wd*t)
+    s = sin(wd*t)
+    x = e*(self%x0*c + (self%v0 + zw*self%x0)/wd*s)
+    v = e*(self%v0*c - (zw*self%v0 + self%omega**2*self%x0)/wd*s)
+  end subroutine exact
+
+  subroutine finish(self, st)
+    class(oscillator_t), intent(inout) :: self
+    type(status_t), intent(inout) :: st
+    call write_rows(self, .true., st)
+  end subroutine finish
+
+  subroutine close_outputs(self, flush_only, st)
+    class(oscillator_t), intent(inout) :: self
+    logical, intent(in) :: flush_only
+    type(status_t), intent(inout) :: st
+    call table_flush(self%traj, st)
+    call table_flush(self%energy, st)
+    if (flush_only) return
+    call table_close(self%traj, st)
+    call table_close(self%energy, st)
+    self%writing = .false.
+  end subroutine close_outputs
+
+  subroutine save_state(self, u, st)
+    class(oscillator_t), intent(in) :: self
+    integer, intent(in) :: u
+    type(status_t), intent(inout) :: st
+    integer :: ios
+    character(len=msg_len) :: iom
+    write(u, iostat=ios, iomsg=iom) self%n, self%step, self%x, self%v
+    if (ios /= 0) call set_error(st, exit_io, 'checkpoint: write failed: '//trim(iom))
+  end subroutine save_state
+
+  subroutine restore_state(self, u, st)
+    class(oscillator_t), intent(inout) :: self
+    integer, intent(in) :: u
+    type(status_t), intent(inout) :: st
+    integer :: ios
+    integer(i8) :: n
+    read(u, iostat=ios) n
+    if (ios == 0 .and. n /= self%n) ios = 1
+    if (ios == 0) read(u, iostat=ios) self%step, self%x, self%v
+    if (ios == 0 .and. (self%step < 0 .or. self%step > self%n_steps)) ios = 1
+    if (ios /= 0) call set_error(st, exit_io, 'checkpoint payload does not match the scene')
+  end subroutine restore_state
+
+  subroutine counters(self, done, total, t)
+    class(oscillator_t), intent(in) :: self
+    integer(i8), intent(out) :: done, total
+    real(dp), intent(out) :: t
+    done = self%step
+    total = self%n_steps
+    t = real(self%step, dp)*self%dt
+  end subroutine counters
+
+  function progress_text(self) result(s)
+    class(oscillator_t), intent(in) :: self
+    character(len=:), allocatable :: s
+    character(len=30) :: buf
+    write(buf, '(es12.5)') 0.5_dp*sum(self%v**2) + 0.5_dp*self%omega**2*sum(self%x**2)
+    s = 'run '//trim(adjustl(buf))
+  end function progress_text
+
+  subroutine json_fields(self, u)
+    class(oscillator_t), intent(in) :: self
+    integer, intent(in) :: u
+    write(u, '(a,i0,a)') '  "n_particles": ', self%n, ','
+    write(u, '(a)') '  "units": {"length": "L", "time": "tau", "mass": "1", '// &
+         '"energy": "L^2/tau^2"},'
+  end subroutine json_fields
+
+  function rstr(v) result(s)
+    real(dp), intent(in) :: v
+    character(len=24) :: s
+    write(s, '(es12.5)') v
+  end function rstr
+
+end module oscillator

@@ -1,0 +1,73 @@
+"""Scene kinds: the method that runs each, its namelist groups, its units and the pyorch
+subpackage that reads, analyses and plots its run directories.
+
+Every kind runs through the same engine executable and the same ``pyorch run/check/plot/sweep``;
+the engine dispatches on ``&scene kind``. A subpackage (``pyorch.bed``, ``pyorch.oscillator``)
+provides ``save_run_plots(run_dir, out=None) -> list[Path]`` and ``default_metrics(run_dir)
+-> dict`` (the sweep's per-point results).
+"""
+from __future__ import annotations
+
+import importlib
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from types import ModuleType
+
+from pyorch import RunError, SceneError
+
+
+@dataclass(frozen=True)
+class Kind:
+    """One scene kind: its name, engine method (Fortran folder), groups, units, subpackage."""
+
+    name: str
+    method: str
+    groups: tuple[str, ...]
+    units: str
+    package: str
+    summary: str
+
+
+KINDS: dict[str, Kind] = {
+    "magnet_bed": Kind(
+        "magnet_bed", "md",
+        ("scene", "material", "cell", "particles", "physics", "integration", "protocol", "output"),
+        "length D1 (big-particle diameter), time T = sqrt(D1/g), mass m1, force m1 g; "
+        "&material in SI",
+        "pyorch.bed", "magnetic granular bed compressed by a piston (thesis 003)"),
+    "oscillator": Kind(
+        "oscillator", "oscillator", ("scene", "oscillator", "output"),
+        "length L and time tau of the user's choice (omega in rad/tau), unit mass",
+        "pyorch.oscillator", "independent damped harmonic oscillators (validation kind)"),
+}
+
+_KIND_RE = re.compile(r"""^\s*kind\s*=\s*['"]([^'"]*)['"]""", re.I | re.M)
+
+
+def get(name: str) -> Kind:
+    """The Kind called ``name``; SceneError naming the allowed kinds otherwise."""
+    try:
+        return KINDS[name]
+    except KeyError:
+        raise SceneError(f"&scene kind = {name!r}: allowed " +
+                         " | ".join(repr(k) for k in KINDS)) from None
+
+
+def of_run(run_dir: str | Path) -> Kind:
+    """Kind of a run directory, from the engine's resolved ``scene.nml``."""
+    path = Path(run_dir) / "scene.nml"
+    try:
+        text = path.read_text(encoding="utf-8", errors="replace")
+    except OSError as exc:
+        raise RunError(f"{run_dir}: not a run directory ({path.name}: {exc.strerror})") from None
+    m = _KIND_RE.search(text)
+    if m is None:
+        raise RunError(f"{path}: no &scene kind")
+    return get(m.group(1))
+
+
+def plugin(kind: Kind | str) -> ModuleType:
+    """The pyorch subpackage of a kind."""
+    k = get(kind) if isinstance(kind, str) else kind
+    return importlib.import_module(k.package)

@@ -1,0 +1,149 @@
+"""The second method behind the runner's interface: kind 'oscillator' (damped harmonic
+oscillators with an exact solution). It checks that the shared machinery - dispatch on
+&scene kind, validation, run directory, checkpoints, bit-identical resume, both doors - is not
+bed-shaped, and the integrators' orders on a problem with a closed form."""
+from __future__ import annotations
+
+import json
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pyorch import RunError, SceneError
+from pyorch import oscillator as osc
+from pyorch.run import engine_executable, resume, run
+from pyorch.scene import Scene
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENE = ROOT / "runs" / "oscillator.nml"
+OMEGA = 2 * np.pi
+
+
+def _run(tmp: Path, name: str, door: str = "exe", **over: object) -> Path:
+    sc = Scene.read(SCENE).with_overrides({"oscillator.n": 8, "oscillator.t_end": 5.0, **over})
+    out = tmp / name
+    run(sc, out, door=door, progress=False)
+    return out
+
+
+def _zeta(out: Path) -> float:
+    return float(Scene.read(out / "scene.nml").get("oscillator", "zeta"))
+
+
+def test_exact_propagator_matches_closed_form(tmp_path: Path) -> None:
+    out = _run(tmp_path, "exact", **{"oscillator.integrator": "exact"})
+    assert osc.max_error(out, OMEGA, _zeta(out)) < 1e-12
+
+
+@pytest.mark.parametrize("integrator, order", [("velocity_verlet", 2.0), ("euler", 1.0)])
+def test_convergence_order(tmp_path: Path, integrator: str, order: float) -> None:
+    """Error at t = 5 tau against the exact solution, dt halved twice."""
+    errs = []
+    for k, dt in enumerate([4e-3, 2e-3, 1e-3]):
+        out = _run(tmp_path, f"{integrator}{k}", **{"oscillator.integrator": integrator,
+                                                    "oscillator.dt": dt})
+        errs.append(osc.max_error(out, OMEGA, _zeta(out)))
+    p = np.log2(np.array(errs[:-1]) / np.array(errs[1:]))
+    assert np.allclose(p, order, atol=0.05), (errs, p)
+
+
+def test_undamped_verlet_energy_bounded(tmp_path: Path) -> None:
+    """Symplectic: with zeta = 0 the energy error stays O(dt^2) and does not drift."""
+    out = _run(tmp_path, "vv", **{"oscillator.zeta": 0.0, "oscillator.t_end": 50.0,
+                                  "oscillator.dt": 1e-2})
+    e = osc.energy(out)["E_total"].to_numpy()
+    rel = np.abs(e - e[0]) / e[0]
+    assert rel.max() < (OMEGA * 1e-2) ** 2 / 4 + 1e-12
+    half = len(e) // 2
+    assert abs(rel[half:].max() - rel[:half].max()) < 0.2 * rel.max()
+
+
+def test_damped_energy_decay_rate(tmp_path: Path) -> None:
+    """Energy decays as e^{-2 zeta omega t} on average (cycle-averaged over whole periods)."""
+    out = _run(tmp_path, "damped", **{"oscillator.zeta": 0.05, "oscillator.dt": 1e-3,
+                                      "oscillator.t_end": 10.0})
+    en = osc.energy(out)
+    t, e = en["t"].to_numpy(), en["E_total"].to_numpy()
+    slope = np.polyfit(t, np.log(e), 1)[0]
+    assert slope == pytest.approx(-2 * 0.05 * OMEGA, rel=0.02)
+
+
+def test_doors_byte_identical(tmp_path: Path) -> None:
+    a = _run(tmp_path, "exe", door="exe")
+    b = _run(tmp_path, "f2py", door="f2py")
+    for name in ("trajectory.dat", "energy.dat", "scene.nml"):
+        assert (a / name).read_bytes() == (b / name).read_bytes(), name
+
+
+def test_pause_and_resume_bit_identical(tmp_path: Path) -> None:
+    full = _run(tmp_path, "full", **{"output.checkpoint_every": 700})
+    sc = Scene.read(SCENE).with_overrides({"oscillator.n": 8, "oscillator.t_end": 5.0,
+                                           "output.checkpoint_every": 700})
+    path = sc.write(tmp_path / "s.nml")
+    part = tmp_path / "part"
+    p = subprocess.run([str(engine_executable()), str(path), "--out", str(part), "--quiet",
+                        "--stop-at", "2345"], capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr
+    meta = json.loads((part / "run.json").read_text())
+    assert meta["steps_done"] == 2345 and meta["status"].startswith("paused")
+    resume(part, progress=False)
+    for name in ("trajectory.dat", "energy.dat"):
+        assert (full / name).read_bytes() == (part / name).read_bytes(), name
+    assert json.loads((part / "run.json").read_text())["status"] == "completed"
+
+
+def test_checkpoint_of_another_kind_refused(tmp_path: Path) -> None:
+    """A bed checkpoint dropped into an oscillator run is refused (kind/scene binding)."""
+    osc_dir = tmp_path / "osc"
+    sc = Scene.read(SCENE).with_overrides({"oscillator.n": 8, "oscillator.t_end": 5.0})
+    p = subprocess.run([str(engine_executable()), str(sc.write(tmp_path / "o.nml")), "--out",
+                        str(osc_dir), "--quiet", "--stop-at", "100"], capture_output=True,
+                       text=True)
+    assert p.returncode == 0, p.stderr
+    bed = Scene.read(ROOT / "runs" / "single_particle.nml")
+    bed_dir = tmp_path / "bed"
+    p = subprocess.run([str(engine_executable()), str(bed.write(tmp_path / "b.nml")), "--out",
+                        str(bed_dir), "--quiet", "--stop-at", "10"], capture_output=True,
+                       text=True)
+    assert p.returncode == 0, p.stderr
+    (osc_dir / "checkpoint.bin").write_bytes((bed_dir / "checkpoint.bin").read_bytes())
+    with pytest.raises(RunError, match="checkpoint"):
+        resume(osc_dir, progress=False)
+
+
+@pytest.mark.parametrize("key, value, needle", [
+    ("oscillator.zeta", 1.0, "zeta"),
+    ("oscillator.dt", 0.0, "dt"),
+    ("oscillator.omega", float("nan"), "omega"),
+    ("oscillator.integrator", "'rk4'", "integrator"),
+    ("oscillator.n", 0, "n"),
+])
+def test_bad_input_names_key(tmp_path: Path, key: str, value: object, needle: str) -> None:
+    sc = Scene.read(SCENE).with_overrides({key: value} if not isinstance(value, str)
+                                          else [f"{key}={value}"])
+    out = tmp_path / "bad"
+    with pytest.raises(SceneError, match=f"&oscillator {needle} "):
+        run(sc, out, progress=False)
+    assert not out.exists()
+
+
+def test_unknown_kind_refused(tmp_path: Path) -> None:
+    path = tmp_path / "k.nml"
+    path.write_text("&scene\n  kind = 'lj_box'\n/\n")
+    p = subprocess.run([str(engine_executable()), str(path), "--out", str(tmp_path / "o")],
+                       capture_output=True, text=True)
+    assert p.returncode == 2
+    assert "kind" in p.stderr and "'oscillator'" in p.stderr and "'magnet_bed'" in p.stderr
+    assert not (tmp_path / "o").exists()
+
+
+def test_explicit_euler_blow_up_is_a_clear_failure(tmp_path: Path) -> None:
+    """Euler is unconditionally unstable for an undamped oscillator: the run ends with the
+    guard's message and exit 3 long before an overflow, never NaN in the files."""
+    with pytest.raises(RunError, match="non-finite"):
+        _run(tmp_path, "blow", **{"oscillator.integrator": "euler", "oscillator.zeta": 0.0,
+                                  "oscillator.dt": 0.5, "oscillator.t_end": 2000.0})
+    text = (tmp_path / "blow" / "trajectory.dat").read_text().lower()
+    assert "nan" not in text and "infinity" not in text
