@@ -39,6 +39,7 @@ spacing ``sqrt(area of box / N)``.
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import asdict, dataclass
 from typing import Literal
 
@@ -116,20 +117,71 @@ def _polygon_area(v: NDArray[np.float64]) -> float:
     return 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
 
 
-def _cell_polygon(vor: Voronoi, i: int, tol: float) -> NDArray[np.float64] | None:
-    """Ordered, de-duplicated vertices (k, 2) of particle ``i``'s cell; None if unbounded.
+def _segment_starts(counts: NDArray[np.intp]) -> NDArray[np.intp]:
+    """Start offsets of consecutive segments of the given lengths."""
+    return np.concatenate(([0], np.cumsum(counts)[:-1])).astype(np.intp)
 
-    Vertices are sorted by angle about the generating point (cells are convex and contain it) and a
-    vertex is dropped when the next one is closer than ``tol`` (collapses zero-length edges).
+
+def _cyclic_next(seg: NDArray[np.intp], counts: NDArray[np.intp]) -> NDArray[np.intp]:
+    """Index of the next element within its segment, the last wrapping to the first.
+
+    ``seg`` is the (sorted) segment number of every element of a flat array made of consecutive
+    segments whose lengths are ``counts`` (segments of length 0 allowed).
     """
-    region = vor.regions[vor.point_region[i]]
-    if len(region) == 0 or -1 in region:
-        return None
-    v = vor.vertices[region]
-    c = vor.points[i]
-    v = v[np.argsort(np.arctan2(v[:, 1] - c[1], v[:, 0] - c[0]))]
-    edge = np.linalg.norm(np.roll(v, -1, axis=0) - v, axis=1)
-    return v[edge > tol]
+    start = _segment_starts(counts)
+    nxt = np.arange(len(seg), dtype=np.intp) + 1
+    last = start + counts - 1
+    has = counts > 0
+    nxt[last[has]] = start[has]
+    return nxt
+
+
+def _cell_polygons(vor: Voronoi, tol: float) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+    """Every bounded cell as one flat array of ordered, de-duplicated vertices.
+
+    For particle ``i`` with a bounded cell the vertices of its Voronoi region are sorted by angle about
+    the generating point (cells are convex and contain it) and a vertex is dropped when the next one
+    (cyclically) is closer than ``tol`` (collapses zero-length edges). Vectorised over all cells: one
+    sort of the flat vertex list keyed by (particle, angle).
+
+    Returns
+    -------
+    owner : (K,) int
+        Particle of each kept vertex, non-decreasing.
+    xy : (K, 2) float
+        Kept vertices (D1), in boundary order within each particle.
+    n_sides : (N,) int
+        Number of kept vertices per particle; -1 for unbounded cells.
+    nxt : (K,) int
+        Index into ``xy`` of the next kept vertex of the same cell (cyclic).
+    """
+    n = len(vor.points)
+    regions = vor.regions
+    lens = np.fromiter(map(len, regions), dtype=np.intp, count=len(regions))
+    flat = np.fromiter(itertools.chain.from_iterable(regions), dtype=np.intp, count=int(lens.sum()))
+    reg_start = _segment_starts(lens)
+    pr = np.asarray(vor.point_region, dtype=np.intp)
+    cnt = lens[pr]
+    owner = np.repeat(np.arange(n, dtype=np.intp), cnt)
+    pos = np.arange(len(owner), dtype=np.intp) - np.repeat(_segment_starts(cnt), cnt)
+    vidx = flat[np.repeat(reg_start[pr], cnt) + pos]
+    unbounded = np.bincount(owner[vidx < 0], minlength=n) > 0
+    bounded = (cnt > 0) & ~unbounded
+    keep = bounded[owner]
+    owner, vidx = owner[keep], vidx[keep]
+    cnt = np.where(bounded, cnt, 0)
+    v = vor.vertices[vidx]
+    c = vor.points[owner]
+    ang = np.arctan2(v[:, 1] - c[:, 1], v[:, 0] - c[:, 0])
+    order = np.lexsort((ang, owner))
+    v, owner = v[order], owner[order]
+    nxt = _cyclic_next(owner, cnt)
+    edge = np.hypot(*(v[nxt] - v).T)
+    kept = edge > tol
+    v, owner = v[kept], owner[kept]
+    sides = np.bincount(owner, minlength=n)
+    n_sides = np.where(bounded, sides, -1)
+    return owner, v, n_sides, _cyclic_next(owner, sides)
 
 
 def _neighbour_pairs(vor: Voronoi, tol: float) -> NDArray[np.intp]:
@@ -200,25 +252,21 @@ def hexagon_regularity(vertices: ArrayLike) -> float:
 def _cells_table(vor: Voronoi, box: Box, tol: float, ids: NDArray) -> pd.DataFrame:
     """Per-particle cell table from a Voronoi diagram (see :func:`voronoi_cells`)."""
     n = len(vor.points)
-    n_sides = np.full(n, -1)
-    area = np.full(n, np.nan)
+    owner, v, n_sides, nxt = _cell_polygons(vor, tol)
+    w = v[nxt]
+    c = vor.points[owner]  # shoelace about the generating point: no cancellation of large coordinates
+    cross = (v[:, 0] - c[:, 0]) * (w[:, 1] - c[:, 1]) - (v[:, 1] - c[:, 1]) * (w[:, 0] - c[:, 0])
+    l2 = np.sum((w - v) ** 2, axis=1)
+    polygon = n_sides >= 3
+    area = np.where(polygon, 0.5 * np.abs(np.bincount(owner, weights=cross, minlength=n)), np.nan)
+    sum_l2 = np.bincount(owner, weights=l2, minlength=n)
+    hexagon = n_sides == 6
     r6 = np.full(n, np.nan)
-    interior = np.zeros(n, dtype=bool)
+    r6[hexagon] = 4.0 / np.sqrt(3.0) * area[hexagon] / sum_l2[hexagon]
     xmin, xmax, ymin, ymax = box
-    for i in range(n):
-        v = _cell_polygon(vor, i, tol)
-        if v is None:
-            continue
-        n_sides[i] = len(v)
-        if len(v) < 3:
-            continue
-        area[i] = _polygon_area(v)
-        if len(v) == 6:
-            r6[i] = hexagon_regularity(v)
-        interior[i] = bool(
-            np.all((v[:, 0] >= xmin - tol) & (v[:, 0] <= xmax + tol)
-                   & (v[:, 1] >= ymin - tol) & (v[:, 1] <= ymax + tol))
-        )
+    outside = ~((v[:, 0] >= xmin - tol) & (v[:, 0] <= xmax + tol)
+                & (v[:, 1] >= ymin - tol) & (v[:, 1] <= ymax + tol))
+    interior = polygon & (np.bincount(owner, weights=outside, minlength=n) == 0)
     return pd.DataFrame({
         "id": ids,
         "x": vor.points[:, 0],
