@@ -48,7 +48,7 @@ sys.path.insert(0, str(ROOT / "bench"))
 
 from pyorch import io  # noqa: E402
 from pyorch.analysis import fit_linear, frame_metrics, pearson  # noqa: E402
-from pyorch.run import run  # noqa: E402
+from pyorch.run import resume, run  # noqa: E402
 from pyorch.scene import Scene  # noqa: E402
 
 MM_PER_S_6MM = 1e-3 * math.sqrt(6e-3 / 9.8) / 6e-3   # 1 mm/s in D1/T, D1 = 6 mm
@@ -143,18 +143,26 @@ def resolved(spec: Spec) -> Scene:
     return sc.with_overrides({"output.frame_every": turnaround_step(sc)})
 
 
+def spec_key(spec: Spec) -> str:
+    """What identifies a run: scene path and overrides (stored as spec.json)."""
+    return json.dumps({"scene": spec.scene, "overrides": dict(spec.overrides)}, sort_keys=True)
+
+
 def execute(spec: Spec, out_root: Path) -> Path:
-    """Run ``spec`` unless a completed run of the same spec exists; return its directory."""
+    """Run ``spec``; reuse a completed run of the same spec, resume an interrupted one."""
     out = out_root / spec.name
-    key = json.dumps({"scene": spec.scene, "overrides": dict(spec.overrides)}, sort_keys=True)
-    meta = out / "run.json"
-    if meta.is_file() and (out / "spec.json").is_file():
-        if (json.loads(meta.read_text()).get("status") == "completed"
-                and (out / "spec.json").read_text() == key):
-            return out
+    key, meta, stored = spec_key(spec), out / "run.json", out / "spec.json"
+    same = stored.is_file() and stored.read_text() == key and meta.is_file()
+    status = json.loads(meta.read_text()).get("status", "") if same else ""
+    if status == "completed":
+        return out
     t0 = time.perf_counter()
-    run(resolved(spec), out, progress=False, threads=1)
-    (out / "spec.json").write_text(key)
+    if status.startswith(("interrupted", "paused")) and (out / "checkpoint.bin").is_file():
+        resume(out, progress=False, threads=1)
+    else:
+        out.mkdir(parents=True, exist_ok=True)
+        stored.write_text(key)   # before the run: an interrupted run resumes next time
+        run(resolved(spec), out, progress=False, threads=1)
     print(f"  {spec.name}: {time.perf_counter() - t0:.0f} s", flush=True)
     return out
 
