@@ -53,6 +53,7 @@ module scene
     real(dp) :: v_threshold = 1.0e-6_dp  !< [D1/T]
     real(dp) :: viscous_gamma = 0.0_dp   !< dimensionless gamma T/m1; 0 = off
     real(dp) :: min_distance = 0.5_dp    !< guard: stop when two centres come closer [D1]; 0 = off
+    character(len=name_len) :: tilt = 'eq_2_10'  !< tilt angle: 'eq_2_10' (with - phi) | 'eq_4_10' (without)
     ! &integration
     character(len=name_len) :: integrator = 'stormer_verlet'  !< | 'velocity_verlet' | 'euler'
     character(len=name_len) :: neighbour = 'all_pairs'  !< | 'cells' | 'verlet' | 'thesis'
@@ -108,7 +109,7 @@ contains
     real(dp) :: speed_init, jitter, fill_height, species_diameter(max_species), mix_ratio
     real(dp) :: species_fraction(max_species), hf_reference
     character(len=name_len) :: placement
-    character(len=name_len) :: pair_law, wall_law, dry_friction
+    character(len=name_len) :: pair_law, wall_law, dry_friction, tilt
     logical :: gravity
     real(dp) :: mu_static, mu_dynamic, v_threshold, viscous_gamma, min_distance
     character(len=name_len) :: integrator, neighbour, truncation, tail
@@ -127,7 +128,7 @@ contains
     namelist /particles/ n, seed, speed_init, jitter, fill_height, n_species, &
          species_diameter, mix_ratio, placement, species_fraction
     namelist /physics/ pair_law, wall_law, gravity, dry_friction, mu_static, &
-         mu_dynamic, v_threshold, viscous_gamma, min_distance
+         mu_dynamic, v_threshold, viscous_gamma, min_distance, tilt
     namelist /integration/ integrator, neighbour, dt, r_cut, skin, truncation, tail, &
          tail_every, target_rel_error
     namelist /protocol/ piston, h_start, t_relax, relax_rate, h0, hf, phi_final, hf_reference, &
@@ -149,7 +150,7 @@ contains
     species_fraction = sc%species_fraction; hf_reference = sc%hf_reference
     placement = sc%placement
     pair_law = sc%pair_law; wall_law = sc%wall_law; gravity = sc%gravity
-    dry_friction = sc%dry_friction; mu_static = sc%mu_static
+    dry_friction = sc%dry_friction; mu_static = sc%mu_static; tilt = sc%tilt
     mu_dynamic = sc%mu_dynamic; v_threshold = sc%v_threshold
     viscous_gamma = sc%viscous_gamma; min_distance = sc%min_distance
     integrator = sc%integrator; neighbour = sc%neighbour; dt = sc%dt
@@ -204,7 +205,7 @@ contains
     sc%species_fraction = species_fraction; sc%hf_reference = hf_reference
     sc%placement = placement
     sc%pair_law = pair_law; sc%wall_law = wall_law; sc%gravity = gravity
-    sc%dry_friction = dry_friction; sc%mu_static = mu_static
+    sc%dry_friction = dry_friction; sc%mu_static = mu_static; sc%tilt = tilt
     sc%mu_dynamic = mu_dynamic; sc%v_threshold = v_threshold
     sc%viscous_gamma = viscous_gamma; sc%min_distance = min_distance
     sc%integrator = integrator; sc%neighbour = neighbour; sc%dt = dt
@@ -338,6 +339,7 @@ contains
     call rpos('physics', 'v_threshold', sc%v_threshold, 1.0e-15_dp, 1.0_dp)
     call rpos('physics', 'viscous_gamma', sc%viscous_gamma, 0.0_dp, 1.0e6_dp, .true.)
     call rpos('physics', 'min_distance', sc%min_distance, 0.0_dp, 1.0_dp, .true.)
+    call choice('physics', 'tilt', sc%tilt, [character(len=name_len) :: 'eq_2_10', 'eq_4_10'])
     if (trim(sc%dry_friction) /= 'none') then
       ! every species must be able to tilt against the glass (eq. 2.10)
       dmax = sqrt((sc%diameter*minval(sc%species_diameter(1:max(1, min(sc%n_species, &
@@ -592,6 +594,7 @@ contains
     call pr('v_threshold', sc%v_threshold, 'D1/T')
     call pr('viscous_gamma', sc%viscous_gamma, 'dimensionless gamma*T/m1')
     call pr('min_distance', sc%min_distance, 'D1, guard (0 = off)')
+    call ps('tilt', sc%tilt, 'eq_2_10: arcsin(E/sqrt(D^2+eps^2)) - phi; eq_4_10: without - phi')
     write(u, '(a)') '/'
     write(u, '(a)') '&integration'
     call ps('integrator', sc%integrator, '')
