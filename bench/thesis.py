@@ -47,7 +47,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "bench"))
 
 from pyorch import io  # noqa: E402
-from pyorch.analysis import fit_linear, frame_metrics, pearson  # noqa: E402
+from pyorch.bed.analysis import fit_linear, frame_metrics, pearson  # noqa: E402
 from pyorch.run import resume, run  # noqa: E402
 from pyorch.scene import Scene  # noqa: E402
 
