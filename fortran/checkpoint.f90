@@ -15,7 +15,7 @@ module checkpoint
   public :: checkpoint_write, checkpoint_read, truncate_file
 
   integer, parameter :: magic = 20261122   !< format tag
-  integer, parameter :: version = 3
+  integer, parameter :: version = 4
 
   interface
     integer(c_int) function c_truncate(path, length) bind(C, name='truncate')
@@ -59,7 +59,8 @@ contains
       write(u) nl%cell_start, nl%cell_part, nl%start, nl%nbr, nl%xref, nl%yref
     end if
     write(u) allocated(pst%y)
-    if (allocated(pst%y)) write(u) pst%y, pst%yp, pst%vy, pst%fy, pst%has_previous
+    if (allocated(pst%y)) write(u) pst%y, pst%yp, pst%vy, pst%fy, pst%has_previous, &
+         pst%nudge_step, pst%calm_since
     close(u)
     call rename_into_place(tmp, trim(path), st)
   end subroutine checkpoint_write
@@ -114,7 +115,7 @@ contains
     if (ios == 0) read(u, iostat=ios) has_piston
     if (ios == 0 .and. has_piston .neqv. allocated(pst%y)) ios = 1
     if (ios == 0 .and. has_piston) read(u, iostat=ios) pst%y, pst%yp, pst%vy, pst%fy, &
-         pst%has_previous
+         pst%has_previous, pst%nudge_step, pst%calm_since
     close(u)
     if (ios /= 0) call set_error(st, exit_io, trim(path)//': checkpoint is truncated or '// &
          'does not match the scene')
