@@ -338,47 +338,56 @@ contains
   end subroutine guard_velocity
 
   !> The likely cause of a pair closer than min_distance, from what the state
-  !> shows: if the pair closed a large part of its distance within the last
-  !> step, the step does not resolve the approach (dt); otherwise the approach
-  !> was resolved and the crush is physical (load vs what a bed layer holds at
-  !> min_distance: width/min_distance particles, each on two neighbours at
-  !> 60 degrees, sqrt(3) k mu_i mu_j min_distance^-4).
+  !> shows: if the pair closed a large part (> 10 %) of its distance within the
+  !> last step, the step does not resolve the approach (dt); otherwise the
+  !> approach was resolved (a smaller dt would crush at the same time) and the
+  !> crush is physical: for a free piston, its weight against the bed's push on
+  !> it (weight larger: the bed cannot hold it; push larger: the impact).
   function crush_cause(sim, bi, bj) result(text)
     type(sim_t), intent(in) :: sim
     integer, intent(in) :: bi, bj
     character(len=:), allocatable :: text
-    character(len=500) :: buf
-    real(dp) :: dx, dy, d, vix, viy, vjx, vjy, closing, hold, load
+    character(len=600) :: buf, head
+    real(dp) :: dx, dy, d, vix, viy, vjx, vjy, closing, w, v
     associate (s => sim%s, m => sim%m)
       dx = s%x(bi) - s%x(bj); dy = s%y(bi) - s%y(bj)
       d = max(sqrt(dx*dx + dy*dy), tiny(1.0_dp))
       call guard_velocity(sim, bi, vix, viy)
       call guard_velocity(sim, bj, vjx, vjy)
       closing = -((vix - vjx)*dx + (viy - vjy)*dy)/d*m%dt   ! [D1 per step]
-      hold = m%width/sim%sc%min_distance*sqrt(3.0_dp)*m%k_pair*s%mu(bi)*s%mu(bj) &
-           /sim%sc%min_distance**4
-      if (m%piston_mode == piston_free) then
-        load = m%piston_mass*merge(m%big_g, 0.0_dp, m%gravity_on)
-      else
-        load = abs(s%piston_force)
-      end if
       if (closing > 0.1_dp*d) then
-        write(buf, '(a,es10.3,a,f5.1,a)') 'the pair closed ', closing, ' D1 in the last step (', &
+        write(buf, '(a,es10.3,a,f6.1,a)') 'the pair closed ', closing, ' D1 in the last step (', &
              100*closing/d, ' % of its distance): the time step does not resolve this approach; '// &
              'reduce dt'
-      else if (load > hold) then
-        write(buf, '(a,es10.3,a,es10.3,a,es10.3,a)') 'physical crush: the load on the bed (', &
-             load, ' m1 g) exceeds what the bed can hold at min_distance (about ', hold, &
-             ' m1 g); the pair closed only ', closing, ' D1 in the last step, so dt is not '// &
-             'the cause: use a lighter piston or a wider bed'
+        text = trim(buf)
+        return
+      end if
+      write(head, '(a,es10.3,a,f5.1,a)') 'physical crush, dt is not the cause (the pair closed only ', &
+           closing, ' D1, ', 100*closing/d, ' % of its distance, in the last step)'
+      if (m%piston_mode == piston_free) then
+        w = m%piston_mass*merge(m%big_g, 0.0_dp, m%gravity_on)
+        v = sim%pst%vy(1)
+        if (sim%pst%has_previous .and. m%integrator == int_stormer_verlet) &
+             v = (sim%pst%y(1) - sim%pst%yp(1))/m%dt
+        if (sim%pst%has_previous .and. m%integrator == int_velocity_verlet) v = sim%pst%yp(1)
+        if (s%piston_force < w) then
+          write(buf, '(a,es10.3,a,es10.3,a)') ': the piston''s weight (', w, &
+               ' m1 g) exceeds what the bed can hold at min_distance (its push on the piston is ', &
+               s%piston_force, ' m1 g); use a lighter piston or a wider bed'
+        else
+          write(buf, '(a,es10.3,a,es10.3,a,es10.3,a)') ': the impact of the piston (speed ', v, &
+               ' D1/T, weight ', w, ' m1 g) squeezes the bed below min_distance although its '// &
+               'push (', s%piston_force, ' m1 g) exceeds the weight; use a lighter piston, '// &
+               'a lower h_start or more damping'
+        end if
+      else if (m%piston_mode == piston_prescribed) then
+        write(buf, '(a,es10.3,a)') ': the piston pushes with ', s%piston_force, &
+             ' m1 g and squeezes a pair below min_distance; compress less (hf, phi_final)'
       else
-        write(buf, '(a,es10.3,a,es10.3,a,es10.3,a)') 'physical crush: the pair closed only ', &
-             closing, ' D1 in the last step (dt resolves the approach, it is not the cause); '// &
-             'the load on the bed is ', load, ' m1 g (a layer holds about ', hold, &
-             ' m1 g at min_distance): the bed is squeezed locally; check the load and min_distance'
+        buf = ': the pair is pushed below min_distance by the bed''s own load; check the scene'
       end if
     end associate
-    text = trim(buf)
+    text = trim(head)//trim(buf)
   end function crush_cause
 
   !> The likely cause of a free piston outside (0, height]: launched upwards
