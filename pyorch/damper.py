@@ -1198,6 +1198,7 @@ def identify_fall(
     *,
     t_scale: float | Literal["auto", "gravity"] = "auto",
     H_eq: float | None = None,
+    H0: float | None = None,
     tail: float = 0.2,
 ) -> tuple[NormalisedRecord, pd.DataFrame]:
     """The thesis' identification of a fall from rest (Fig. 5.12), with uncertainties.
@@ -1211,8 +1212,8 @@ def identify_fall(
     ----------
     t, H : array_like
         Times [T] from the release and piston heights [D1].
-    t_scale, H_eq, tail
-        Passed to :func:`normalise`.
+    t_scale, H_eq, H0, tail
+        Passed to :func:`normalise` (``H0`` default ``H[0]``, the release height).
 
     Returns
     -------
@@ -1222,7 +1223,7 @@ def identify_fall(
         z_eq`` (linear) with ``*_err`` (1 sigma, NaN where fixed or not applicable), ``n_params``,
         ``rms``, ``r2``, ``aic`` and ``delta_aic`` (over the fitted rows; 0 = preferred).
     """
-    nr = normalise(t, H, H_eq=H_eq, t_scale=t_scale, tail=tail)
+    nr = normalise(t, H, H_eq=H_eq, H0=H0, t_scale=t_scale, tail=tail)
     fits: dict[str, _FitMixin] = {
         "vdp, z(0)=1 z'(0)=0 fixed": fit_vdp(nr.t, nr.z, z0=1.0, v0=0.0),
         "vdp, z(0) z'(0) free": fit_vdp(nr.t, nr.z),
