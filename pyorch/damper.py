@@ -1221,7 +1221,11 @@ def identify_fall(
         The normalisation (its ``scale`` [D1], ``offset`` [D1] and ``t_scale`` [T] map the thesis'
         units to ours) and one row per model: ``a, w, g0, z0, v0`` (eq. 5.12) or ``zeta, omega,
         z_eq`` (linear) with ``*_err`` (1 sigma, NaN where fixed or not applicable), ``n_params``,
-        ``rms``, ``r2``, ``aic`` and ``delta_aic`` (over the fitted rows; 0 = preferred).
+        ``rms``, ``r2``, ``aic`` and ``delta_aic`` (over the fitted rows; 0 = preferred), and
+        ``rho1``, the lag-1 autocorrelation of the residuals, with ``err_inflation`` =
+        ``sqrt((1 + rho1) / (1 - rho1))``: the ``*_err`` assume independent residuals; a model
+        error shows as correlated residuals, and multiplying the ``*_err`` by ``err_inflation``
+        (AR(1) effective sample size) gives the more honest uncertainty.
     """
     nr = normalise(t, H, H_eq=H_eq, H0=H0, t_scale=t_scale, tail=tail)
     fits: dict[str, _FitMixin] = {
@@ -1238,6 +1242,7 @@ def identify_fall(
             row[f"{name}_err"] = f.errors[name]
         if isinstance(f, VdPFit):
             row["z_eq"] = f.z_eq
+        row["rho1"], row["err_inflation"] = _residual_correlation(nr.z - f(nr.t))
         rows.append(row)
     zt = simulate_vdp(nr.t, **THESIS_VDP, z0=1.0, v0=0.0)
     res = nr.z - zt
@@ -1247,6 +1252,15 @@ def identify_fall(
     out = pd.DataFrame(rows).set_index("model")
     out["delta_aic"] = out["aic"] - out["aic"].min()
     return nr, out
+
+
+def _residual_correlation(res: NDArray) -> tuple[float, float]:
+    """Lag-1 autocorrelation of residuals and the AR(1) error inflation sqrt((1+r)/(1-r))."""
+    r = res - np.mean(res)
+    den = float(np.sum(r * r))
+    rho = float(np.sum(r[1:] * r[:-1]) / den) if den > 0 else 0.0
+    rho = min(max(rho, 0.0), 1.0 - 1e-12)
+    return rho, math.sqrt((1.0 + rho) / (1.0 - rho))
 
 
 def _settled_rest(t: NDArray, H: NDArray, tail: float, settle_frac: float) -> tuple[float, str]:
@@ -1394,7 +1408,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(f"normalisation: z = (H - {nr.offset:.4g} D1) / {nr.scale:.4g} D1 (H0 = {nr.H0:.4g} -> 1, "
           f"H_rest = {nr.H_eq:.4g} -> {nr.z_eq:g}); time unit {nr.t_scale:.4g} T")
     cols = [c for c in ("a", "a_err", "w", "w_err", "g0", "g0_err", "z0", "z0_err", "v0", "v0_err",
-                        "zeta", "zeta_err", "omega", "omega_err", "z_eq", "rms", "r2", "delta_aic")
+                        "zeta", "zeta_err", "omega", "omega_err", "z_eq", "rms", "r2", "delta_aic",
+                        "err_inflation")
             if c in table.columns]
     with pd.option_context("display.width", 250, "display.max_columns", 40):
         print(table[cols].to_string(float_format=lambda v: f"{v:.4g}"))

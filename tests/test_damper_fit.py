@@ -364,3 +364,12 @@ def test_sweep_metrics_on_a_record_with_two_peaks_says_not_identified(tmp_path) 
     assert out["identification"].startswith("not identified")
     assert "2 peaks" in out["identification"]
     assert np.isnan(out["zeta"])
+
+
+def test_identify_fall_error_inflation_flags_model_error() -> None:
+    """White residuals (the model of the data): no inflation; a linear oscillator fitted to
+    eq. (5.12) data leaves correlated residuals and a large inflation of its formal errors."""
+    t, H, offset, scale, tau = _thesis_fall_in_raw_units()
+    _, table = dmp.identify_fall(t, H, t_scale=tau, H_eq=offset - scale, H0=offset + scale)
+    assert table.loc["vdp, z(0)=1 z'(0)=0 fixed", "err_inflation"] < 1.3
+    assert table.loc["linear", "err_inflation"] > 3.0
