@@ -80,9 +80,12 @@ module scene
     real(dp) :: t_end = -1.0_dp          !< total time for piston = fixed|none [T]
     real(dp) :: piston_mass = 100.0_dp   !< free piston: mass [m1]
     real(dp) :: piston_gamma = 0.0_dp    !< free piston: viscous friction, force -gamma M v
-    real(dp) :: t_settle = 50.0_dp       !< free piston: first fall, until at rest [T]
-    real(dp) :: nudge = 0.2_dp           !< free piston: lift after settling [D1]
-    real(dp) :: t_record = 20.0_dp       !< free piston: recorded free motion after the nudge [T]
+    real(dp) :: t_settle = 50.0_dp       !< free piston, nudge > 0: longest wait for the settling [T]
+    real(dp) :: nudge = 0.0_dp           !< free piston: lift once settled [D1]; 0 = record the fall
+    real(dp) :: t_record = 20.0_dp       !< free piston: recorded motion (the fall, or after the nudge) [T]
+    real(dp) :: settle_speed = 0.005_dp  !< free piston, nudge > 0: settled below this piston speed [D1/T]
+    real(dp) :: settle_ekin = 1.0e-4_dp  !< ... and below this bed kinetic energy per particle [m1 g D1]
+    real(dp) :: settle_hold = 25.0_dp    !< ... both held without a break for this long [T]
     ! &output (cadences in steps; 0 switches a file off)
     integer :: piston_every = 100
     integer :: frame_every = 0
@@ -118,6 +121,7 @@ contains
     character(len=name_len) :: piston
     real(dp) :: h_start, t_relax, relax_rate, h0, hf, phi_final, piston_speed
     real(dp) :: t_hold, t_final, t_end, piston_mass, piston_gamma, t_settle, nudge, t_record
+    real(dp) :: settle_speed, settle_ekin, settle_hold
     logical :: expand
     integer :: piston_every, frame_every, distance_every, energy_every, progress_every
     integer :: checkpoint_every
@@ -133,7 +137,7 @@ contains
          tail_every, target_rel_error
     namelist /protocol/ piston, h_start, t_relax, relax_rate, h0, hf, phi_final, hf_reference, &
          piston_speed, t_hold, expand, t_final, t_end, piston_mass, piston_gamma, t_settle, &
-         nudge, t_record
+         nudge, t_record, settle_speed, settle_ekin, settle_hold
     namelist /output/ piston_every, frame_every, distance_every, energy_every, &
          progress_every, checkpoint_every
 
@@ -162,6 +166,7 @@ contains
     t_final = sc%t_final; t_end = sc%t_end
     piston_mass = sc%piston_mass; piston_gamma = sc%piston_gamma; t_settle = sc%t_settle
     nudge = sc%nudge; t_record = sc%t_record
+    settle_speed = sc%settle_speed; settle_ekin = sc%settle_ekin; settle_hold = sc%settle_hold
     piston_every = sc%piston_every; frame_every = sc%frame_every
     distance_every = sc%distance_every; energy_every = sc%energy_every
     progress_every = sc%progress_every; checkpoint_every = sc%checkpoint_every
@@ -217,6 +222,7 @@ contains
     sc%t_final = t_final; sc%t_end = t_end
     sc%piston_mass = piston_mass; sc%piston_gamma = piston_gamma; sc%t_settle = t_settle
     sc%nudge = nudge; sc%t_record = t_record
+    sc%settle_speed = settle_speed; sc%settle_ekin = settle_ekin; sc%settle_hold = settle_hold
     sc%piston_every = piston_every; sc%frame_every = frame_every
     sc%distance_every = distance_every; sc%energy_every = energy_every
     sc%progress_every = progress_every; sc%checkpoint_every = checkpoint_every
@@ -397,6 +403,9 @@ contains
       call rpos('protocol', 't_settle', sc%t_settle, 0.0_dp, 1.0e9_dp, .true.)
       call rpos('protocol', 'nudge', sc%nudge, 0.0_dp, 1.0e3_dp, .true.)
       call rpos('protocol', 't_record', sc%t_record, 0.0_dp, 1.0e9_dp)
+      call rpos('protocol', 'settle_speed', sc%settle_speed, 0.0_dp, 1.0e3_dp)
+      call rpos('protocol', 'settle_ekin', sc%settle_ekin, 0.0_dp, 1.0e6_dp)
+      call rpos('protocol', 'settle_hold', sc%settle_hold, 0.0_dp, 1.0e9_dp, .true.)
     else
       call rpos('protocol', 't_end', sc%t_end, 1.0e-12_dp, 1.0e9_dp)
     end if
@@ -623,9 +632,12 @@ contains
     call pr('t_end', sc%t_end, 'T')
     call pr('piston_mass', sc%piston_mass, 'm1 (free piston)')
     call pr('piston_gamma', sc%piston_gamma, 'free piston viscous friction')
-    call pr('t_settle', sc%t_settle, 'T (free piston)')
-    call pr('nudge', sc%nudge, 'D1 (free piston)')
+    call pr('t_settle', sc%t_settle, 'T (free piston, nudge > 0: longest wait for settling)')
+    call pr('nudge', sc%nudge, 'D1 (free piston; 0 = record the fall)')
     call pr('t_record', sc%t_record, 'T (free piston)')
+    call pr('settle_speed', sc%settle_speed, 'D1/T (free piston, nudge > 0)')
+    call pr('settle_ekin', sc%settle_ekin, 'm1 g D1 per particle (free piston, nudge > 0)')
+    call pr('settle_hold', sc%settle_hold, 'T (free piston, nudge > 0)')
     write(u, '(a)') '/'
     write(u, '(a)') '&output ! cadences in steps, 0 = off'
     call pi_('piston_every', sc%piston_every, '')
