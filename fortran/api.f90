@@ -9,6 +9,7 @@ module api
        time_pair_pass
   use model, only: piston_free
   use runner, only: sim_execute, sim_resume
+  use signals, only: install_handlers, restore_handlers
   use protocol, only: piston_at
   use pair_forces, only: dipole_kernel
   use neighbours, only: nlist_due
@@ -21,13 +22,19 @@ module api
 
 contains
 
-  !> Run a scene exactly as the executable does, writing run directory `outdir`.
-  subroutine run_scene(path, outdir, code, message)
+  !> Run a scene exactly as the executable does, writing run directory
+  !> `outdir` (overwrite /= 0: replace a run found there). SIGINT/SIGTERM
+  !> during the run stop it at the next step with a checkpoint (code 5);
+  !> Python's handlers are restored afterwards.
+  subroutine run_scene(path, outdir, overwrite, code, message)
     character(len=*), intent(in) :: path, outdir
+    integer, intent(in) :: overwrite
     integer, intent(out) :: code
     character(len=1024), intent(out) :: message
     type(status_t) :: st
-    call sim_execute(path, outdir, .false., -1_i8, st)
+    call install_handlers()
+    call sim_execute(path, outdir, .false., -1_i8, overwrite /= 0, st)
+    call restore_handlers()
     code = st%code
     message = st%msg
   end subroutine run_scene
@@ -38,7 +45,9 @@ contains
     integer, intent(out) :: code
     character(len=1024), intent(out) :: message
     type(status_t) :: st
+    call install_handlers()
     call sim_resume(rundir, .false., -1_i8, st)
+    call restore_handlers()
     code = st%code
     message = st%msg
   end subroutine resume_run
@@ -132,11 +141,12 @@ contains
 
   subroutine piston_state(h, force, phase, n_steps)
     real(dp), intent(out) :: h, force
-    integer, intent(out) :: phase, n_steps
+    integer, intent(out) :: phase
+    integer(i8), intent(out) :: n_steps   !< 64-bit: long runs exceed 2^31 steps
     h = the_sim%s%piston_h
     force = the_sim%s%piston_force
     phase = the_sim%s%phase
-    n_steps = int(the_sim%p%n_steps)
+    n_steps = the_sim%p%n_steps
   end subroutine piston_state
 
   !> Dimensionless groups and SI unit scales of the loaded scene.

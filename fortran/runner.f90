@@ -6,63 +6,120 @@
 module runner
   use, intrinsic :: iso_fortran_env, only: output_unit
   use kinds, only: dp, i8
-  use errors, only: status_t, set_error, exit_ok, exit_interrupted
+  use errors, only: status_t, set_error, exit_ok, exit_interrupted, exit_io
   use engine, only: sim_t, sim_load, sim_step, pairs_per_step
   use protocol, only: phase_names
   use output, only: output_open, output_close, output_flush, output_sizes, output_names, &
-       write_run_json, make_dir
+       write_run_json, make_dir, file_exists, remove_file
   use scene, only: scene_write
-  use checkpoint, only: checkpoint_write, checkpoint_read, truncate_file
+  use checkpoint, only: checkpoint_write, checkpoint_read, truncate_file, file_crc64
   use signals, only: stop_requested, stop_signal
   implicit none
   private
 
-  public :: sim_execute, sim_resume
+  public :: sim_execute, sim_resume, run_files
 
   character(len=*), parameter :: ckpt_name = 'checkpoint.bin'
   character(len=*), parameter :: ckpt_failed = 'checkpoint_failed.bin'
+  !> Every file a run writes into its directory (a directory holding any of
+  !> them holds a run; --overwrite removes exactly these).
+  character(len=*), parameter :: run_files(11) = [character(len=25) :: 'scene.nml', 'run.json', &
+       '.run.json.tmp', 'piston.dat', 'particles.dat', 'mean_distance.dat', 'energy.dat', &
+       'checkpoint.bin', 'checkpoint.bin.tmp', 'checkpoint_failed.bin', &
+       'checkpoint_failed.bin.tmp']
 
 contains
 
   !> The whole run: load (nothing written on bad input), open the run
-  !> directory, run until the end (or step stop_at >= 0), finish.
-  subroutine sim_execute(path, dir, progress, stop_at, st)
+  !> directory, run until the end (or step stop_at >= 0), finish. A
+  !> directory that holds another run is refused unless overwrite, which
+  !> removes that run's files first.
+  subroutine sim_execute(path, dir, progress, stop_at, overwrite, st)
     character(len=*), intent(in) :: path, dir
     logical, intent(in) :: progress
     integer(i8), intent(in) :: stop_at   !< pause (checkpoint, exit 0) at this step; < 0: never
+    logical, intent(in) :: overwrite
     type(status_t), intent(inout) :: st
     type(sim_t) :: sim
+    integer(i8) :: hash
+    integer :: k
+    if (len_trim(dir) == 0) then
+      call set_error(st, exit_io, 'the output directory name is empty')
+      return
+    end if
     call sim_load(sim, path, st)
     if (st%code /= 0) return
     sim%progress = progress
     sim%dir = trim(dir)
+    do k = 1, size(run_files)
+      if (.not. file_exists(trim(dir)//'/'//trim(run_files(k)))) cycle
+      if (.not. overwrite) then
+        call set_error(st, exit_io, trim(dir)//': holds another run ('//trim(run_files(k))// &
+             '); choose a new directory, resume it, or pass --overwrite to replace it')
+        return
+      end if
+      call remove_file(trim(dir)//'/'//trim(run_files(k)), st)
+      if (st%code /= 0) return
+    end do
     call make_dir(dir, st)
     if (st%code /= 0) return
     call scene_write(trim(dir)//'/scene.nml', sim%sc, st)
     if (st%code /= 0) return
+    call file_crc64(trim(dir)//'/scene.nml', hash, st)
+    if (st%code /= 0) return
     call open_files(sim, .false., st)
     if (st%code /= 0) return
-    call run_loop(sim, stop_at, st)
+    call save(sim, ckpt_name, hash, st)   ! step 0: a run killed at once resumes from here
+    if (st%code /= 0) then
+      call finish(sim, 'failed: '//trim(st%msg), st)
+      return
+    end if
+    call run_loop(sim, stop_at, hash, st)
   end subroutine sim_execute
 
   !> Continue a run directory from its last checkpoint: the output files are
   !> cut back to their size at the checkpoint and appended to, so the result
-  !> is byte-identical to an uninterrupted run.
+  !> is byte-identical to an uninterrupted run. The checkpoint must match
+  !> the run's scene.nml (hash), this engine and be intact (checksum). A run
+  !> directory without checkpoint (killed before its first was on disk)
+  !> starts again from step 0.
   subroutine sim_resume(dir, progress, stop_at, st)
     character(len=*), intent(in) :: dir
     logical, intent(in) :: progress
     integer(i8), intent(in) :: stop_at
     type(status_t), intent(inout) :: st
     type(sim_t) :: sim
-    integer(i8) :: sizes(4)
+    integer(i8) :: sizes(4), hash
     real(dp) :: wall
     integer :: k
     logical :: on(4)
+    if (len_trim(dir) == 0) then
+      call set_error(st, exit_io, 'the run directory name is empty')
+      return
+    end if
+    if (.not. file_exists(trim(dir)//'/scene.nml')) then
+      call set_error(st, exit_io, trim(dir)//': not a run directory (no scene.nml)')
+      return
+    end if
     call sim_load(sim, trim(dir)//'/scene.nml', st)
     if (st%code /= 0) return
     sim%progress = progress
     sim%dir = trim(dir)
-    call checkpoint_read(trim(dir)//'/'//ckpt_name, sim%s, sim%nl, sizes, wall, sim%pst, st)
+    call file_crc64(trim(dir)//'/scene.nml', hash, st)
+    if (st%code /= 0) return
+    if (.not. file_exists(trim(dir)//'/'//ckpt_name)) then
+      call open_files(sim, .false., st)
+      if (st%code /= 0) return
+      call save(sim, ckpt_name, hash, st)
+      if (st%code /= 0) then
+        call finish(sim, 'failed: '//trim(st%msg), st)
+        return
+      end if
+      call run_loop(sim, stop_at, hash, st)
+      return
+    end if
+    call checkpoint_read(trim(dir)//'/'//ckpt_name, trim(sim%sc%kind), hash, sim%s, sim%nl, &
+         sizes, wall, sim%pst, st)
     if (st%code /= 0) return
     sim%wall_before = wall
     on = [sim%sc%piston_every > 0, sim%sc%frame_every > 0, sim%sc%distance_every > 0, &
@@ -73,7 +130,7 @@ contains
     if (st%code /= 0) return
     call open_files(sim, .true., st)
     if (st%code /= 0) return
-    call run_loop(sim, stop_at, st)
+    call run_loop(sim, stop_at, hash, st)
   end subroutine sim_resume
 
   subroutine open_files(sim, append, st)
@@ -104,20 +161,30 @@ contains
          pairs_per_step(sim), sim%nl%evaluated, st)
   end subroutine run_json
 
-  subroutine save(sim, name, st)
+  !> Checkpoint `name`, bound to the scene hash. The output files are
+  !> flushed and fsynced first; if that fails no checkpoint is written (the
+  !> previous one stays valid) and the write error is returned.
+  subroutine save(sim, name, hash, st)
     type(sim_t), intent(inout) :: sim
     character(len=*), intent(in) :: name
+    integer(i8), intent(in) :: hash
     type(status_t), intent(inout) :: st
     integer(i8) :: sizes(4)
     call output_sizes(sim%o, sizes)
-    call checkpoint_write(sim%dir//'/'//name, sim%s, sim%nl, sizes, wall_time(sim), sim%pst, st)
+    if (sim%o%st%code /= exit_ok) then
+      call set_error(st, sim%o%st%code, trim(sim%o%st%msg))
+      return
+    end if
+    call checkpoint_write(sim%dir//'/'//name, trim(sim%sc%kind), hash, sim%s, sim%nl, sizes, &
+         wall_time(sim), sim%pst, st)
   end subroutine save
 
   !> Step to the end; checkpoints every checkpoint_every steps; stop cleanly
   !> on a guard (checkpoint_failed.bin), a signal or stop_at.
-  subroutine run_loop(sim, stop_at, st)
+  subroutine run_loop(sim, stop_at, hash, st)
     type(sim_t), intent(inout) :: sim
     integer(i8), intent(in) :: stop_at
+    integer(i8), intent(in) :: hash   !< scene hash the checkpoints are bound to
     type(status_t), intent(inout) :: st
     type(status_t) :: aux
     integer(i8) :: every
@@ -125,27 +192,36 @@ contains
     every = sim%sc%checkpoint_every
     do while (sim%s%step < sim%p%n_steps)
       if (stop_at >= 0 .and. sim%s%step >= stop_at) then
-        call save(sim, ckpt_name, st)
+        call save(sim, ckpt_name, hash, st)
+        if (st%code /= 0) exit
         write(buf, '(a,i0,a)') 'paused at step ', sim%s%step, ' (resume with --resume)'
         call finish(sim, trim(buf), st)
         return
       end if
       call sim_step(sim, st)
+      if (st%code == 0 .and. sim%o%st%code /= exit_ok) &
+           call set_error(st, sim%o%st%code, trim(sim%o%st%msg))
+      if (st%code == exit_io) exit   ! a failed write: keep the last good checkpoint
       if (st%code /= 0) then
-        call save(sim, ckpt_failed, aux)
+        call save(sim, ckpt_failed, hash, aux)
         call finish(sim, 'failed: '//trim(st%msg), st)
         return
       end if
       if (sim%progress .and. mod(sim%s%step, sim%progress_every) == 0) call progress_line(sim)
       if (every > 0) then
         if (mod(sim%s%step, every) == 0 .and. sim%s%step < sim%p%n_steps) then
-          call save(sim, ckpt_name, st)
+          call save(sim, ckpt_name, hash, st)
           if (st%code == 0) call run_json(sim, 'running', st)
           if (st%code /= 0) exit
         end if
       end if
       if (stop_requested) then
-        call save(sim, ckpt_name, aux)
+        call save(sim, ckpt_name, hash, aux)
+        if (aux%code /= exit_ok) then   ! the interruption cannot be resumed from here
+          call set_error(st, aux%code, trim(aux%msg))
+          call finish(sim, 'failed: '//trim(st%msg), st)
+          return
+        end if
         write(buf, '(a,i0,a,i0,a)') 'signal ', stop_signal, ' at step ', &
              sim%s%step, ' (checkpoint written; resume with --resume)'
         call set_error(st, exit_interrupted, trim(buf))
@@ -154,6 +230,8 @@ contains
       end if
     end do
     if (st%code == 0) call sim_step(sim, st, final=.true.)
+    if (st%code == 0 .and. sim%o%st%code /= exit_ok) &
+         call set_error(st, sim%o%st%code, trim(sim%o%st%msg))
     if (st%code == 0) then
       call finish(sim, 'completed', st)
     else
@@ -177,6 +255,14 @@ contains
     if (.not. sim%writing) return
     call output_flush(sim%o)
     call output_close(sim%o)
+    if (st%code == exit_ok .and. sim%o%st%code /= exit_ok) then
+      ! the last rows could not be written: the run did not complete
+      call set_error(st, sim%o%st%code, trim(sim%o%st%msg))
+      st2 = st
+      call run_json(sim, 'failed: '//trim(st%msg), st2)
+      sim%writing = .false.
+      return
+    end if
     st2 = st
     call run_json(sim, status, st2)
     if (st%code == exit_ok .and. st2%code /= exit_ok) st = st2

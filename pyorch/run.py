@@ -111,7 +111,7 @@ def _run_f2py(nml: Path, out: Path) -> None:
     from pyorch import _engine
 
     out.parent.mkdir(parents=True, exist_ok=True)
-    code, msg = _engine.api.run_scene(str(nml), str(out))
+    code, msg = _engine.api.run_scene(str(nml), str(out), 0)
     text = (msg.decode() if isinstance(msg, bytes) else str(msg)).strip()
     _raise_for(code, text)
 
