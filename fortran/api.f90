@@ -10,13 +10,14 @@ module api
   use model, only: piston_free
   use runner, only: sim_execute, sim_resume
   use signals, only: install_handlers, restore_handlers
+  use scene, only: scene_t, scene_read, scene_write
   use protocol, only: piston_at
   use pair_forces, only: dipole_kernel
   use neighbours, only: nlist_due
   use integrators, only: estimate_velocity, finish_velocity
   implicit none
   private
-  public :: run_scene, resume_run, load_scene, n_particles, get_state, set_state, compute_forces, &
+  public :: run_scene, resume_run, load_scene, resolve_scene, n_particles, get_state, set_state, compute_forces, &
        advance_steps, piston_state, model_groups, energies, kernel, precision_probe, &
        set_threads, list_audit, protocol_times, set_piston, bench_pairs
 
@@ -51,6 +52,21 @@ contains
     code = st%code
     message = st%msg
   end subroutine resume_run
+
+  !> The engine's one reading of a scene file, for pyorch: read `path`
+  !> (file-level and type checks, no range validation) and write every key
+  !> as the engine understood it to `outpath` (the resolved-scene format).
+  subroutine resolve_scene(path, outpath, code, message)
+    character(len=*), intent(in) :: path, outpath
+    integer, intent(out) :: code
+    character(len=1024), intent(out) :: message
+    type(status_t) :: st
+    type(scene_t) :: sc
+    call scene_read(path, sc, st)
+    if (st%code == 0) call scene_write(outpath, sc, st)
+    code = st%code
+    message = st%msg
+  end subroutine resolve_scene
 
   !> Load and validate a scene into the in-memory simulation (writes nothing).
   subroutine load_scene(path, code, message)

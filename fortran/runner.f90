@@ -10,8 +10,9 @@ module runner
   use engine, only: sim_t, sim_load, sim_step, pairs_per_step
   use protocol, only: phase_names
   use output, only: output_open, output_close, output_flush, output_sizes, output_names, &
-       write_run_json, make_dir, file_exists, remove_file
-  use scene, only: scene_write
+       write_run_json, make_dir, file_exists, remove_file, cfile_t, cf_open, cf_write, cf_close
+  use scene, only: scene_text
+  use, intrinsic :: iso_fortran_env, only: int8
   use checkpoint, only: checkpoint_write, checkpoint_read, truncate_file, file_crc64
   use signals, only: stop_requested, stop_signal
   implicit none
@@ -63,7 +64,7 @@ contains
     end do
     call make_dir(dir, st)
     if (st%code /= 0) return
-    call scene_write(trim(dir)//'/scene.nml', sim%sc, st)
+    call write_scene(trim(dir)//'/scene.nml', sim, st)
     if (st%code /= 0) return
     call file_crc64(trim(dir)//'/scene.nml', hash, st)
     if (st%code /= 0) return
@@ -132,6 +133,17 @@ contains
     if (st%code /= 0) return
     call run_loop(sim, stop_at, hash, st)
   end subroutine sim_resume
+
+  !> The resolved scene of the run (checked write, fsync).
+  subroutine write_scene(path, sim, st)
+    character(len=*), intent(in) :: path
+    type(sim_t), intent(in) :: sim
+    type(status_t), intent(inout) :: st
+    type(cfile_t) :: f
+    call cf_open(f, path, 'w', st)
+    call cf_write(f, transfer(scene_text(sim%sc), [0_int8]), st)
+    call cf_close(f, st, sync=.true.)
+  end subroutine write_scene
 
   subroutine open_files(sim, append, st)
     type(sim_t), intent(inout) :: sim

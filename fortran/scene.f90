@@ -11,7 +11,7 @@ module scene
   implicit none
   private
 
-  public :: scene_t, max_species, scene_read, scene_validate, scene_write
+  public :: scene_t, max_species, scene_read, scene_validate, scene_write, scene_text
   public :: known_groups
 
   integer, parameter :: max_species = 8
@@ -1254,23 +1254,18 @@ contains
     s = trim(b)
   end function istr
 
-  !> Write the fully resolved scene as a namelist the engine reads back
-  !> bit-exactly (17 significant digits), with units as comments.
-  subroutine scene_write(path, sc, st)
-    character(len=*), intent(in) :: path
+  !> The fully resolved scene as namelist text the engine reads back
+  !> bit-exactly (17 significant digits), with units as comments: every key,
+  !> one group each, strings quoted with doubled quotes, arrays in full.
+  !> This is the format of a run directory's scene.nml and the one text
+  !> pyorch reads (one reading of a scene, shared by both doors).
+  function scene_text(sc) result(text)
     type(scene_t), intent(in) :: sc
-    type(status_t), intent(inout) :: st
-    integer :: u, ios, k, bad_ios
-    integer(i8) :: nbytes, on_disk
+    character(len=:), allocatable :: text
+    integer :: k
     character(len=400) :: ln
     character(len=:), allocatable :: arr
-    open(newunit=u, file=path, status='replace', action='write', iostat=ios)
-    if (ios /= 0) then
-      call set_error(st, exit_io, trim(path)//': cannot write resolved scene')
-      return
-    end if
-    nbytes = 0
-    bad_ios = 0
+    text = ''
     call emit('! resolved scene: every key with the value the engine used')
     call emit('&scene')
     call ps('kind', sc%kind, 'scene kind')
@@ -1362,20 +1357,10 @@ contains
     call pi_('progress_every', sc%progress_every, '')
     call pi_('checkpoint_every', sc%checkpoint_every, '')
     call emit('/')
-    close(u, iostat=ios)
-    ! gfortran drops ENOSPC silently: compare the size on disk with what was written
-    inquire(file=path, size=on_disk)
-    if (bad_ios /= 0 .or. ios /= 0 .or. on_disk /= nbytes) then
-      write(ln, '(i0,a,i0)') on_disk, ' of ', nbytes
-      call set_error(st, exit_io, trim(path)//': write failed (file has '//trim(ln)// &
-           ' bytes: is the disk full?)')
-    end if
   contains
-    subroutine emit(text)
-      character(len=*), intent(in) :: text
-      if (bad_ios /= 0) return
-      write(u, '(a)', iostat=bad_ios) text
-      nbytes = nbytes + len(text) + 1
+    subroutine emit(line)
+      character(len=*), intent(in) :: line
+      text = text//line//achar(10)
     end subroutine emit
     !> A string for a quoted namelist value: quotes doubled.
     function quoted(v) result(r)
@@ -1420,6 +1405,33 @@ contains
         call emit('  '//key//' = .false.')
       end if
     end subroutine pl
+  end function scene_text
+
+  !> Write scene_text(sc) to path. gfortran drops ENOSPC silently, so the
+  !> size on disk is compared with the text written.
+  subroutine scene_write(path, sc, st)
+    character(len=*), intent(in) :: path
+    type(scene_t), intent(in) :: sc
+    type(status_t), intent(inout) :: st
+    character(len=:), allocatable :: text
+    integer :: u, ios
+    integer(i8) :: on_disk
+    character(len=64) :: b
+    text = scene_text(sc)
+    open(newunit=u, file=path, access='stream', form='unformatted', status='replace', &
+         action='write', iostat=ios)
+    if (ios /= 0) then
+      call set_error(st, exit_io, trim(path)//': cannot write resolved scene')
+      return
+    end if
+    write(u, iostat=ios) text
+    close(u)
+    inquire(file=path, size=on_disk)
+    if (ios /= 0 .or. on_disk /= len(text, i8)) then
+      write(b, '(i0,a,i0)') on_disk, ' of ', len(text)
+      call set_error(st, exit_io, trim(path)//': write failed (the file has '//trim(b)// &
+           ' bytes: is the disk full?)')
+    end if
   end subroutine scene_write
 
 end module scene
