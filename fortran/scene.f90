@@ -7,7 +7,7 @@ module scene
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use, intrinsic :: iso_c_binding, only: c_int, c_long
   use kinds, only: dp, i8
-  use errors, only: status_t, set_error, exit_bad_input, exit_io, msg_len
+  use errors, only: status_t, set_error, exit_bad_input, exit_io, exit_internal, msg_len
   implicit none
   private
 
@@ -685,31 +685,29 @@ contains
     !> length, from gfortran's namelist write of the (still default) values.
     subroutine schema(g)
       integer, intent(in) :: g
-      integer :: u, ios, e, q2
+      integer :: ios, e, q2, r
+      character(len=1024) :: recs(2*max_keys)
       character(len=1024) :: rec
       character(len=:), allocatable :: v
       nkeys = 0
-      open(newunit=u, status='scratch', form='formatted', delim='quote', action='readwrite', &
-           iostat=ios)
+      recs = ''
+      select case (g)   ! an internal file: no disk involved
+      case (1); write(recs, nml=scene, delim='quote', iostat=ios)
+      case (2); write(recs, nml=material, delim='quote', iostat=ios)
+      case (3); write(recs, nml=cell, delim='quote', iostat=ios)
+      case (4); write(recs, nml=particles, delim='quote', iostat=ios)
+      case (5); write(recs, nml=physics, delim='quote', iostat=ios)
+      case (6); write(recs, nml=integration, delim='quote', iostat=ios)
+      case (7); write(recs, nml=protocol, delim='quote', iostat=ios)
+      case (8); write(recs, nml=output, delim='quote', iostat=ios)
+      end select
       if (ios /= 0) then
-        call set_error(st, exit_io, trim(path)//': cannot open a scratch file to read the scene')
+        call set_error(st, exit_internal, trim(path)//': cannot list the keys of group &'// &
+             trim(known_groups(g)))
         return
       end if
-      select case (g)
-      case (1); write(u, nml=scene)
-      case (2); write(u, nml=material)
-      case (3); write(u, nml=cell)
-      case (4); write(u, nml=particles)
-      case (5); write(u, nml=physics)
-      case (6); write(u, nml=integration)
-      case (7); write(u, nml=protocol)
-      case (8); write(u, nml=output)
-      end select
-      rewind(u)
-      do
-        read(u, '(a)', iostat=ios) rec
-        if (ios /= 0) exit
-        rec = adjustl(rec)
+      do r = 1, size(recs)
+        rec = adjustl(recs(r))
         if (rec(1:1) == '&' .or. rec(1:1) == '/' .or. len_trim(rec) == 0) cycle
         e = index(rec, '=')
         if (e > 1 .and. rec(1:1) /= '"') then
@@ -736,7 +734,6 @@ contains
         end if
         if (nkeys > 0) call count_values(trim(rec))   ! continuation line of an array
       end do
-      close(u)
     end subroutine schema
 
     subroutine count_values(v)
