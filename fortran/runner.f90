@@ -59,6 +59,12 @@ contains
              '); choose a new directory, resume it, or pass --overwrite to replace it')
         return
       end if
+      if (trim(run_files(k)) == 'scene.nml' .and. .not. is_resolved_scene(trim(dir)// &
+           '/scene.nml')) then   ! e.g. the user's own input file: never removed
+        call set_error(st, exit_io, trim(dir)//'/scene.nml: not a run''s resolved scene; '// &
+             'refusing to remove it (choose another directory)')
+        return
+      end if
       call remove_file(trim(dir)//'/'//trim(run_files(k)), st)
       if (st%code /= 0) return
     end do
@@ -133,6 +139,19 @@ contains
     if (st%code /= 0) return
     call run_loop(sim, stop_at, hash, st)
   end subroutine sim_resume
+
+  !> Does the file start like a scene.nml written by a run?
+  logical function is_resolved_scene(path)
+    character(len=*), intent(in) :: path
+    integer :: u, ios
+    character(len=80) :: first
+    is_resolved_scene = .false.
+    open(newunit=u, file=path, status='old', action='read', iostat=ios)
+    if (ios /= 0) return
+    read(u, '(a)', iostat=ios) first
+    close(u)
+    is_resolved_scene = ios == 0 .and. index(first, '! resolved scene:') == 1
+  end function is_resolved_scene
 
   !> The resolved scene of the run (checked write, fsync).
   subroutine write_scene(path, sim, st)

@@ -244,6 +244,13 @@ def test_a_directory_holding_another_run_is_refused_unless_overwrite(small, tmp_
     assert json.loads((d / "run.json").read_text())["status"] == "completed"
     r = run(path, d, progress=False, overwrite=True, door="f2py")
     assert r.meta["status"] == "completed" and dat_bytes(d) == dat_bytes(ref)
+    # a user's own scene.nml (not a resolved scene) is never removed
+    own = tmp_path / "own"
+    own.mkdir()
+    (own / "scene.nml").write_text(path.read_text())
+    p = magbed("scene.nml", "--overwrite", "--quiet", cwd=own)
+    assert p.returncode == 4 and "refusing to remove it" in one_error_line(p.stderr)
+    assert (own / "scene.nml").read_text() == path.read_text()
 
 
 # ---- 3. every value is validated, in every door -----------------------------------
