@@ -327,7 +327,7 @@ contains
         if (peek() == '(') then
           pos = pos + 1
           call skip_spaces()
-          tok = digits()
+          tok = digit_run()
           call skip_spaces()
           if (len(tok) == 0 .or. len(tok) > 6 .or. peek() /= ')') then
             call fail('&'//trim(grp)//' '//trim(key)//'(: the index must be a whole '// &
@@ -587,7 +587,7 @@ contains
       r = text(p0:pos - 1)
     end function ident
 
-    function digits() result(r)
+    function digit_run() result(r)
       character(len=:), allocatable :: r
       integer :: p0
       p0 = pos
@@ -596,7 +596,7 @@ contains
         pos = pos + 1
       end do
       r = text(p0:pos - 1)
-    end function digits
+    end function digit_run
 
     character function peek()
       peek = achar(0)
@@ -686,10 +686,11 @@ contains
     subroutine schema(g)
       integer, intent(in) :: g
       integer :: ios, e, q2, r
-      character(len=1024) :: recs(2*max_keys)
+      character(len=1024), allocatable :: recs(:)
       character(len=1024) :: rec
       character(len=:), allocatable :: v
       nkeys = 0
+      allocate(recs(2*max_keys))
       recs = ''
       select case (g)   ! an internal file: no disk involved
       case (1); write(recs, nml=scene, delim='quote', iostat=ios)
