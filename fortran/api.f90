@@ -1,6 +1,7 @@
 !> Thin f2py door: plain scalars and arrays only. Every routine returns a
 !> status code and message instead of stopping (a stop would end Python).
 module api
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use kinds, only: dp
   use errors, only: status_t
   use api_state, only: the_sim
@@ -115,6 +116,12 @@ contains
       write(message, '(a,i0,a,i0)') 'set_state: got ', n, ' particles, the scene has ', the_sim%s%n
       return
     end if
+    if (.not. (all(ieee_is_finite(x)) .and. all(ieee_is_finite(y)) .and. &
+         all(ieee_is_finite(vx)) .and. all(ieee_is_finite(vy)))) then
+      code = 2
+      message = 'set_state: positions and velocities must be finite numbers'
+      return
+    end if
     the_sim%s%x = x(the_sim%s%id); the_sim%s%y = y(the_sim%s%id)
     the_sim%s%vx = vx(the_sim%s%id); the_sim%s%vy = vy(the_sim%s%id)
     the_sim%s%xp = the_sim%s%x; the_sim%s%yp = the_sim%s%y
@@ -192,6 +199,11 @@ contains
     if (the_sim%m%piston_mode /= piston_free) then
       code = 2
       message = 'set_piston: the scene has no free piston (&protocol piston = ''free'')'
+      return
+    end if
+    if (.not. (ieee_is_finite(h) .and. ieee_is_finite(v))) then
+      code = 2
+      message = 'set_piston: h and v must be finite numbers'
       return
     end if
     the_sim%pst%y = h

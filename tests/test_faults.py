@@ -315,6 +315,16 @@ def test_memory_is_estimated_before_allocating(tmp_path):
     assert "the run needs about" in one_error_line(q.stderr, "pyorch: error: ")
 
 
+def test_the_in_memory_door_refuses_non_finite_state(api):
+    import numpy as np
+
+    code, _ = api.load_scene(str(ROOT / "runs/single_particle.nml"))
+    assert code == 0
+    for bad in (np.nan, np.inf):
+        code, msg = api.set_state(np.array([bad]), np.array([5.0]), np.zeros(1), np.zeros(1))
+        assert code == 2 and b"must be finite" in msg
+
+
 def test_long_runs_count_steps_in_64_bits(tmp_path):
     path = tmp_path / "long.nml"
     path.write_text(KIND + "&protocol t_relax = 1e7 /\n")   # 5e9 steps > 2^31
