@@ -8,8 +8,8 @@
 !> temporary file (checked C stdio, see module output) with a placeholder
 !> header, the caller appends its payload with ckpt_put (bytes, checksummed
 !> as they go), ckpt_commit writes the real header, flushes, fsyncs and
-!> renames the file into place, so the previous checkpoint survives any
-!> failure. ckpt_open verifies every header field and the checksum before
+!> renames the file into place (then fsyncs the directory), so the previous
+!> checkpoint survives any failure. ckpt_open verifies every header field and the checksum before
 !> the caller reads a byte of payload (Fortran stream reads); ckpt_close
 !> checks that the payload was consumed exactly.
 !>
@@ -24,7 +24,7 @@ module checkpoint
   use state, only: state_t
   use neighbours, only: nlist_t
   use output, only: rename_into_place, engine_version, file_exists, remove_file, cfile_t, &
-       cf_open, cf_write, cf_seek, cf_close
+       cf_open, cf_write, cf_seek, cf_close, sync_dir
   implicit none
   private
 
@@ -182,6 +182,7 @@ contains
          transfer(w%nbytes, [0_int8]), transfer(w%crc, [0_int8])], w%st)
     call cf_close(w%f, w%st, sync=.true.)
     if (w%st%code == exit_ok) call rename_into_place(w%path//'.tmp', w%path, w%st)
+    if (w%st%code == exit_ok) call sync_dir(w%path)
     if (w%st%code /= exit_ok) then
       call remove_file(w%path//'.tmp', junk)
       call set_error(st, w%st%code, trim(w%st%msg)//' (the previous checkpoint, if any, '// &

@@ -26,7 +26,7 @@ module output
        write_distance, write_energy, write_run_json, make_dir, output_flush, output_sizes, &
        output_names, rename_into_place
   public :: engine_version, cfile_t, cf_open, cf_write, cf_line, cf_sync, cf_close, cf_seek, &
-       remove_file, file_exists, os_error
+       remove_file, file_exists, os_error, sync_dir
 
   character(len=*), parameter :: engine_version = '0.1.0'  !< bound into run.json and checkpoints
 
@@ -233,6 +233,27 @@ contains
          call set_error(st, exit_io, final//': cannot rename into place: '//os_error()// &
          ' (the previous version is kept)')
   end subroutine rename_into_place
+
+  !> fsync the directory holding `path`, so a rename into it survives a power
+  !> loss (best effort: a file system that cannot open or sync a directory
+  !> is left as it is; the rename itself was checked).
+  subroutine sync_dir(path)
+    character(len=*), intent(in) :: path
+    type(c_ptr) :: fp
+    integer(c_int) :: rc
+    integer :: k
+    k = index(path, '/', back=.true.)
+    if (k > 1) then
+      fp = c_fopen(path(1:k - 1)//c_null_char, 'r'//c_null_char)
+    else if (k == 1) then
+      fp = c_fopen('/'//c_null_char, 'r'//c_null_char)
+    else
+      fp = c_fopen('.'//c_null_char, 'r'//c_null_char)
+    end if
+    if (.not. c_associated(fp)) return
+    rc = c_fsync(c_fileno(fp))
+    rc = c_fclose(fp)
+  end subroutine sync_dir
 
   !> Create a directory (parents must exist); an existing one is fine.
   subroutine make_dir(path, st)
