@@ -395,6 +395,20 @@ def test_strings_keep_every_character_and_arrays_their_index(tmp_path):
     assert Scene.read(d / "scene.nml").get("scene", "title") == title
 
 
+def test_every_key_the_engine_reads_is_in_the_resolved_scene(tmp_path):
+    """A key missing from the resolved scene would be lost on resume and
+    invisible to pyorch: the keys the reader knows (listed in its refusal of
+    an unknown key) are exactly the keys scene.nml holds."""
+    from pyorch.scene import GROUPS, default_keys
+
+    for g in GROUPS:
+        path = tmp_path / f"{g}.nml"
+        path.write_text((KIND if g != "scene" else "") + f"&{g} zz_unknown = 1 /\n")
+        msg = one_error_line(magbed(str(path), "--check").stderr)
+        known = msg.split("(keys: ")[1].rstrip(")").split(", ")
+        assert sorted(known) == sorted(default_keys()[g]), g
+
+
 # ---- 5. the Python layer passes failures on faithfully -----------------------------
 
 def test_refusals_name_the_users_file(small, tmp_path):
