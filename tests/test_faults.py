@@ -123,6 +123,30 @@ def test_no_space_at_all_fails_in_one_line_through_every_layer(small, tiny_fs):
     assert "No space left" in one_error_line(cli.stderr, "pyorch: error: ")
 
 
+def test_a_failed_open_or_rename_stops_with_exit_4_and_keeps_the_old_file(small, tmp_path):
+    path, _ = small
+    d = tmp_path / "r"
+    assert magbed(str(path), "--out", str(d), "--quiet", "--stop-at", "800").returncode == 0
+    good = (d / "checkpoint.bin").read_bytes()
+    # the temporary checkpoint cannot be created: the run stops at its next checkpoint
+    (d / "checkpoint.bin.tmp").mkdir()
+    p = magbed("--resume", str(d), "--quiet")
+    assert p.returncode == 4
+    msg = one_error_line(p.stderr)
+    assert "checkpoint.bin.tmp: cannot open for writing: Is a directory" in msg
+    assert "the previous checkpoint, if any, is kept" in msg
+    assert (d / "checkpoint.bin").read_bytes() == good
+    (d / "checkpoint.bin.tmp").rmdir()
+    # run.json cannot be replaced (rename onto a non-empty directory)
+    (d / "run.json").unlink()
+    (d / "run.json").mkdir()
+    (d / "run.json/x").write_text("")
+    p = magbed("--resume", str(d), "--quiet")
+    assert p.returncode == 4
+    assert "run.json: cannot rename into place" in one_error_line(p.stderr)
+    assert (d / "checkpoint.bin").read_bytes() == good
+
+
 # ---- 2. resume trusts nothing it has not verified ---------------------------------
 
 def _flip(off: int):
