@@ -1301,10 +1301,11 @@ def identify_record(
     * the fit explains the record: ``r2 >= min_r2``;
     * ``zeta > 0`` and its relative uncertainty is at most ``max_rel_err``.
 
-    Otherwise ``identified`` is 0, ``zeta``/``omega_d`` are NaN and ``reason`` says which test failed.
-    The rest height is ``H_rest`` when given (e.g. the engine's settled state before a nudge), else the
-    mean of the record's settled end (see :func:`_settled_rest`: NaN with the reason when the end still
-    oscillates by more than ``settle_frac`` of the range).
+    Otherwise ``identified`` is 0, ``zeta``/``omega_d`` are NaN and ``reason`` lists every test that
+    failed. The rest height is ``H_rest`` when given (e.g. the engine's settled state before a nudge),
+    else the mean of the record's settled end (see :func:`_settled_rest`); a record whose end still
+    oscillates by more than ``settle_frac`` of its range has no rest height (NaN, and ``reason`` says
+    so), whether or not its oscillation is identified.
 
     Parameters
     ----------
@@ -1350,13 +1351,14 @@ def identify_record(
     if not (lin.zeta > 0 and lin.zeta_err <= max_rel_err * lin.zeta):
         reasons.append(f"zeta = {lin.zeta:.3g} +- {lin.zeta_err:.2g} not positive within "
                        f"{max_rel_err:.0%}")
+    note = f"; rest height {why_rest}" if why_rest else ""
     if reasons:
-        out["reason"] = "not identified: " + "; ".join(reasons)
+        out["reason"] = "not identified: " + "; ".join(reasons) + note
         return out
     r = math.sqrt(1.0 - lin.zeta**2)
     wd_err = math.hypot(r * lin.omega_err, lin.omega * lin.zeta / r * lin.zeta_err)
     out.update(identified=1.0, zeta=lin.zeta, zeta_err=lin.zeta_err, omega_d=lin.omega_d,
-               omega_d_err=wd_err, reason="identified" + (f" ({why_rest})" if why_rest else ""))
+               omega_d_err=wd_err, reason="identified" + note)
     return out
 
 
