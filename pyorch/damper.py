@@ -1317,11 +1317,14 @@ def identify_record(
     dict
         ``identified`` (1.0 or 0.0), ``reason`` (str), ``H_rest`` [D1], ``amplitude`` [D1] (largest
         distance from the rest height), ``zeta``, ``zeta_err``, ``omega_d``, ``omega_d_err`` [1/T],
-        ``n_peaks``, ``r2``.
+        ``n_peaks``, ``r2``, ``err_inflation``. The uncertainties are the fit's formal ones times
+        ``err_inflation`` = sqrt((1 + rho1) / (1 - rho1)), rho1 the lag-1 autocorrelation of the
+        residuals (AR(1) effective sample size: model error makes residuals correlated).
     """
     out: dict[str, Any] = {"identified": 0.0, "reason": "", "H_rest": np.nan, "amplitude": np.nan,
                            "zeta": np.nan, "zeta_err": np.nan, "omega_d": np.nan,
-                           "omega_d_err": np.nan, "n_peaks": np.nan, "r2": np.nan}
+                           "omega_d_err": np.nan, "n_peaks": np.nan, "r2": np.nan,
+                           "err_inflation": np.nan}
     try:
         ta, ha = _tz(t, H, n_min=12)
     except ValueError as exc:
@@ -1342,22 +1345,24 @@ def identify_record(
         return out
     pk = peaks(ta, ha, "max", prominence=max(peak_frac * float(np.ptp(ha)), 1e-12))
     n_peaks = int(np.sum(pk["z"].to_numpy() > lin.z_eq))
-    out.update(n_peaks=float(n_peaks), r2=lin.r2)
+    _, inflation = _residual_correlation(ha - lin(ta))
+    zeta_err = lin.zeta_err * inflation
+    out.update(n_peaks=float(n_peaks), r2=lin.r2, err_inflation=inflation)
     reasons = []
     if n_peaks < min_peaks:
         reasons.append(f"{n_peaks} peaks < min_peaks = {min_peaks}")
     if not lin.r2 >= min_r2:
         reasons.append(f"fit quality r2 = {lin.r2:.3g} < min_r2 = {min_r2:g}")
-    if not (lin.zeta > 0 and lin.zeta_err <= max_rel_err * lin.zeta):
-        reasons.append(f"zeta = {lin.zeta:.3g} +- {lin.zeta_err:.2g} not positive within "
+    if not (lin.zeta > 0 and zeta_err <= max_rel_err * lin.zeta):
+        reasons.append(f"zeta = {lin.zeta:.3g} +- {zeta_err:.2g} not positive within "
                        f"{max_rel_err:.0%}")
     note = f"; rest height {why_rest}" if why_rest else ""
     if reasons:
         out["reason"] = "not identified: " + "; ".join(reasons) + note
         return out
     r = math.sqrt(1.0 - lin.zeta**2)
-    wd_err = math.hypot(r * lin.omega_err, lin.omega * lin.zeta / r * lin.zeta_err)
-    out.update(identified=1.0, zeta=lin.zeta, zeta_err=lin.zeta_err, omega_d=lin.omega_d,
+    wd_err = inflation * math.hypot(r * lin.omega_err, lin.omega * lin.zeta / r * lin.zeta_err)
+    out.update(identified=1.0, zeta=lin.zeta, zeta_err=zeta_err, omega_d=lin.omega_d,
                omega_d_err=wd_err, reason="identified" + note)
     return out
 
