@@ -24,6 +24,9 @@ Van der Pol-like model, thesis eq. (5.12) ``z'' + 2 a (z^2 - 2 z) z' + w^2 z = g
     :func:`vdp_rhs`, :func:`simulate_vdp`, :func:`fit_vdp` (:class:`VdPFit`)
 Model selection and sparse identification
     :func:`compare_models`, :func:`fit_sindy` (:class:`SindyModel`, needs the optional ``pysindy``)
+Damper runs (the thesis' experiment; identification that refuses rather than invents)
+    :func:`recorded_motion`, :func:`identify_fall` (eq. 5.12 as the thesis fitted it, with
+    ``alpha = a``), :func:`identify_record`, :func:`sweep_metrics`, ``python -m pyorch.damper RUN_DIR``
 Figures
     :func:`plot_fit`, :func:`plot_phase`
 
@@ -37,8 +40,8 @@ the raw height to ``z`` is therefore part of the model. :func:`normalise` uses t
     z = (H - offset) / scale,   H(t0) -> z = 1,   H_eq -> z = z_eq (default -1),
 
 i.e. ``scale = (H0 - H_eq) / (1 - z_eq)`` and ``offset = H_eq - z_eq * scale``, where ``H0`` is the height
-at the start of the record (piston released at rest after the nudge, so ``z(0) = 1, z'(0) = 0`` as in
-thesis Fig. 5.12) and ``H_eq`` the final rest height (tail mean). With ``z_eq = -1`` the rest state lies
+at the start of the record (piston released at rest: the fall of runs/damper.nml, or the release after
+a nudge; so ``z(0) = 1, z'(0) = 0`` as in thesis Fig. 5.12) and ``H_eq`` the final rest height (tail mean). With ``z_eq = -1`` the rest state lies
 in the damped region with linearised damping ``2 a z_eq (z_eq - 2) = 6 a > 0``: for ``a > 0`` it is a
 stable focus and the solution decays to it, as the piston does. The thesis' hand-tuned values
 (``w = 1.05, g0 = -1``, so ``g0 / w^2 = -0.91``) agree with this anchor to ~10 %. The alternatives are not
@@ -46,7 +49,9 @@ meaningful: ``z = H / H_eq`` puts the rest state at ``z = 1`` in the pumped band
 an unstable focus and a limit cycle for ``a > 0``), and ``z = (H - H_eq) / A0`` puts it at ``z = 0``, where
 the linear damping vanishes and ``g0 = 0`` is forced. Time is shifted to start at 0 and divided by
 ``t_scale`` (default 1, i.e. ``T`` units; ``"auto"`` uses ``1 / omega_d`` of a linear-oscillator fit so
-that the damped angular frequency becomes ~1, the thesis' scale ``w ~ 1``).
+that the damped angular frequency becomes ~1, the thesis' scale ``w ~ 1``; ``"gravity"`` uses
+``sqrt(scale / g)``, in which gravity is 1). The thesis does not state its scales; bench/RESULTS.md §9
+gives the fit of the fall in both units (:func:`identify_fall`, ``python -m pyorch.damper RUN_DIR``).
 """
 
 from __future__ import annotations
