@@ -26,7 +26,7 @@ Model selection and sparse identification
     :func:`compare_models`, :func:`fit_sindy` (:class:`SindyModel`, needs the optional ``pysindy``)
 Damper runs (the thesis' experiment; identification that refuses rather than invents)
     :func:`recorded_motion`, :func:`identify_fall` (eq. 5.12 as the thesis fitted it, with
-    ``alpha = a``), :func:`identify_record`, :func:`sweep_metrics`, ``python -m pyorch.damper RUN_DIR``
+    ``alpha = a``), :func:`identify_record`, :func:`sweep_metrics`, ``python -m pyorch.bed.damper RUN_DIR``
 Figures
     :func:`plot_fit`, :func:`plot_phase`
 
@@ -51,7 +51,7 @@ the linear damping vanishes and ``g0 = 0`` is forced. Time is shifted to start a
 ``t_scale`` (default 1, i.e. ``T`` units; ``"auto"`` uses ``1 / omega_d`` of a linear-oscillator fit so
 that the damped angular frequency becomes ~1, the thesis' scale ``w ~ 1``; ``"gravity"`` uses
 ``sqrt(scale / g)``, in which gravity is 1). The thesis does not state its scales; bench/RESULTS.md §9
-gives the fit of the fall in both units (:func:`identify_fall`, ``python -m pyorch.damper RUN_DIR``).
+gives the fit of the fall in both units (:func:`identify_fall`, ``python -m pyorch.bed.damper RUN_DIR``).
 """
 
 from __future__ import annotations
