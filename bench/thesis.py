@@ -266,10 +266,15 @@ def bi_specs(cfg: Config) -> list[Spec]:
         for seed in cfg.bi_seeds:
             specs.append(Spec(f"bi_a060_R{r:.2f}_s{seed}", "runs/bidisperse/a060.nml",
                               {**base, "particles.mix_ratio": r, "particles.seed": seed}))
-    for r in (0.0, 0.5):
-        specs.append(Spec(f"bi_a060_R{r:.2f}_s1_tilt410", "runs/bidisperse/a060.nml",
-                          {**base, "particles.mix_ratio": r, "particles.seed": 1,
-                           "physics.tilt": "eq_4_10"}))
+    # tilt reading: eq. 4.10 is refused for the 3 mm magnets of a060 (E = 3.1 mm > D2: phi +
+    # theta > 90 deg, negative normal force), so it is measured at R = 0 of a060 (5 mm only)
+    # and on a075_5mm (3.75 mm small magnets), R = 0.5, both readings, same seed
+    specs.append(Spec("bi_a060_R0.00_s1_tilt410", "runs/bidisperse/a060.nml",
+                      {**base, "particles.mix_ratio": 0.0, "particles.seed": 1,
+                       "physics.tilt": "eq_4_10"}))
+    for tilt in ("eq_2_10", "eq_4_10"):
+        specs.append(Spec(f"bi_a075_R0.50_s1_{tilt}", "runs/bidisperse/a075_5mm.nml",
+                          {**base, "particles.seed": 1, "physics.tilt": tilt}))
     return specs
 
 
@@ -369,13 +374,16 @@ def build_table(cfg: Config, dirs: Mapping[str, Path], order: float) -> pd.DataF
         rows.append(row("Table 4.6 (t = 1)", "R_h mean, a = 1 (R = 0)", *TABLE_4_6["a=1 (R=0)"],
                         [x["R6_mean"] for x in bi[0.0]], red["bi"]))
     # tilt: eq. 4.10 reading against ours (eq. 2.10), same seed
-    for r in (0.0, 0.5):
-        alt, ref = m.get(f"bi_a060_R{r:.2f}_s1_tilt410"), m.get(f"bi_a060_R{r:.2f}_s1")
+    pairs = {"a = 0.6, R = 0": ("bi_a060_R0.00_s1", "bi_a060_R0.00_s1_tilt410"),
+             "a = 0.75 (5 mm), R = 0.5": ("bi_a075_R0.50_s1_eq_2_10", "bi_a075_R0.50_s1_eq_4_10")}
+    for label, (ref_name, alt_name) in pairs.items():
+        ref, alt = m.get(ref_name), m.get(alt_name)
         if alt is None or ref is None:
             continue
-        for k, unit in (("F_max_N", "N"), ("n6", "")):
-            rows.append(row("tilt eq. 4.10 vs eq. 2.10", f"{k} eq_4_10 (R = {r:.2f}) [{unit}]", ref[k], 0.0,
-                            [alt[k]], red["bi"], f"eq_2_10 (shipped) = {ref[k]:.4g}, same seed"))
+        for k, unit in (("F_max_N", "N"), ("n6", "1"), ("Psi6_local", "1")):
+            rows.append(row("tilt: eq. 4.10 reading (baseline = ours, eq. 2.10)", f"{k} [{unit}], {label}",
+                            ref[k], 0.0, [alt[k]], red["bi"], "same seed; a = 0.6, R > 0: refused "
+                            "(E > D2, negative normal force)"))
     return pd.DataFrame(rows)
 
 
