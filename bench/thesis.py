@@ -66,6 +66,10 @@ TABLE_3_2 = {368: (15.26, 0.24), 460: (17.63, 0.12), 552: (19.44, 0.19), 644: (2
              736: (23.23, 0.14)}                                  # N: (mean, sd) [N], O(N^2)
 TABLE_5_1 = {"slope": 0.0213, "intercept": 7.59}                   # N/particle, N
 TABLE_5_2_PCT = {368: -0.48, 460: -3.30, 552: -3.46, 644: -3.13, 736: -5.18}
+# standard error of that difference from the table's own sds (3 runs each, unpaired) [%]
+TABLE_5_2_SE = {n: 100 * math.hypot(s_on2, s_v) / math.sqrt(3) / f_v for n, (s_on2, s_v, f_v) in {
+    368: (0.24, 0.11, 15.19), 460: (0.12, 0.27, 17.06), 552: (0.19, 0.09, 18.79),
+    644: (0.17, 0.13, 20.69), 736: (0.14, 0.31, 22.08)}.items()}
 TABLE_3_1 = {  # N: D_min, D_0, D_3, D_0/D_min, D_3/D_min, (D_0 - D_3)/D_min
     92: (5.33, 8.46, 7.99, 1.59, 1.50, 0.09), 184: (7.58, 11.10, 10.41, 1.47, 1.37, 0.09),
     276: (9.43, 13.21, 12.40, 1.40, 1.32, 0.09), 368: (10.90, 14.95, 13.96, 1.37, 1.28, 0.09),
@@ -105,10 +109,12 @@ FULL = Config("full", sizes=(92, 184, 276, 368, 460, 552, 644, 736), seeds=(1, 2
 QUICK = Config("quick", sizes=(92, 184, 368, 552, 736), seeds=(1,), seeds_368=(1, 2, 3),
                t52_sizes=(368,), t52_seeds=(1, 2), bi_r=(0.0, 0.25, 0.5, 0.75, 1.0),
                bi_seeds=(1,), bi_speed_mm_s=10.0, conv_steps=(4e-3, 1e-3, 2.5e-4),
-               reductions={"size": "QUICK: 1 seed (3 at N = 368), N = 92, 184, 368, 552, 736; "
-                                   "Verlet 4.13 + frozen tail",
-                           "t52": "QUICK: N = 368, 2 seeds",
-                           "bi": "QUICK: 5 R values, 1 seed, piston 10 mm/s (thesis 1 mm/s)"})
+               reductions={"size": "QUICK-S", "t52": "QUICK-V", "bi": "QUICK-B"})
+LEGEND = {"QUICK-S": "size family: 1 seed (3 at N = 368), N = 92, 184, 368, 552, 736 (thesis: 3 seeds, "
+                     "every N); Verlet 4.13 + frozen tail (thesis: O(N^2))",
+          "QUICK-V": "Table 5.2: N = 368 only, 2 paired seeds (thesis: 3 unpaired, 5 sizes)",
+          "QUICK-B": "bi-disperse a = 0.6: R = 0, 0.25, 0.5, 0.75, 1, 1 seed, piston 10 mm/s "
+                     "(thesis: 1 mm/s, 2+ runs, 23 R values)"}
 
 
 # ---------------------------------------------------------------------- runs
@@ -215,19 +221,24 @@ def convergence_order(steps: Sequence[float]) -> float:
 
 # --------------------------------------------------------------------- table
 def row(experiment: str, quantity: str, thesis: float, thesis_sd: float, ours: Sequence[float],
-        reduced: str = "", note: str = "") -> dict[str, Any]:
+        reduced: str = "", note: str = "", rel_sd_guess: float = math.nan,
+        compare: bool = True) -> dict[str, Any]:
     """One table row. ``agree``: |ours - thesis| <= 2 sqrt(sd_thesis^2 + sd_ours^2), with the
-    thesis' rounding (half its last digit) standing for sd_thesis where it prints none."""
+    thesis' rounding (half its last digit) standing for sd_thesis where it prints none, and,
+    for a single run, ``rel_sd_guess`` x ours (the seed spread of the same quantity at
+    N = 368) standing for sd_ours (column ``sd_used``). ``compare = False``: no verdict."""
     v = np.asarray([x for x in ours if x is not None and np.isfinite(x)], dtype=float)
     mean = float(v.mean()) if v.size else math.nan
     sd = float(v.std(ddof=1)) if v.size > 1 else math.nan
+    sd_used = sd if np.isfinite(sd) else abs(mean) * rel_sd_guess
     diff = mean - thesis
-    tol = 2 * math.hypot(thesis_sd, 0.0 if math.isnan(sd) else sd)
+    tol = 2 * math.hypot(thesis_sd, 0.0 if math.isnan(sd_used) else sd_used)
+    agree = (("yes" if abs(diff) <= tol else "no") if np.isfinite(diff) else "no") if compare else "-"
     return {"experiment": experiment, "quantity": quantity, "thesis": thesis,
-            "thesis_sd": thesis_sd, "ours": mean, "ours_sd": sd, "n_runs": int(v.size),
-            "diff": diff, "diff_pct": 100 * diff / thesis if thesis else math.nan,
-            "agree": bool(abs(diff) <= tol) if np.isfinite(diff) else False,
-            "reduced": reduced, "note": note}
+            "thesis_sd": thesis_sd, "ours": mean, "ours_sd": sd, "sd_used": sd_used,
+            "n_runs": int(v.size), "diff": diff,
+            "diff_pct": 100 * diff / thesis if thesis else math.nan,
+            "agree": agree, "reduced": reduced, "note": note}
 
 
 def half_digit(x: float, decimals: int = 2) -> float:
@@ -289,12 +300,16 @@ def build_table(cfg: Config, dirs: Mapping[str, Path], order: float) -> pd.DataF
     red = cfg.reductions
     size_of = lambda n: [m[k] for k in m if k.startswith(f"size_N{n:04d}_")]  # noqa: E731
 
+    r368 = size_of(368)
+    rel = lambda f: (float(np.std([f(x) for x in r368], ddof=1) / abs(np.mean([f(x) for x in r368])))  # noqa: E731
+                     if len(r368) > 1 else math.nan)
     # Table 3.2 + 5.1
     fit_n, fit_f = [], []
     for n, (f, sd) in TABLE_3_2.items():
         if n in cfg.sizes:
             vals = [x["F_max_N"] for x in size_of(n)]
-            rows.append(row("Table 3.2 (8.33 mm/s)", f"F_max [N], N = {n}", f, sd, vals, red["size"]))
+            rows.append(row("Table 3.2 (8.33 mm/s)", f"F_max [N], N = {n}", f, sd, vals, red["size"],
+                            rel_sd_guess=rel(lambda x: x["F_max_N"])))
             fit_n += [n] * len(vals)
             fit_f += vals
     if len(set(fit_n)) >= 3:
@@ -310,22 +325,23 @@ def build_table(cfg: Config, dirs: Mapping[str, Path], order: float) -> pd.DataF
         if n not in cfg.sizes:
             continue
         runs_n = size_of(n)
-        ours = ([x["Dmin"] for x in runs_n], [x["D0"] for x in runs_n], [x["D3"] for x in runs_n],
-                [x["D0"] / x["Dmin"] for x in runs_n], [x["D3"] / x["Dmin"] for x in runs_n],
-                [(x["D0"] - x["D3"]) / x["Dmin"] for x in runs_n])
-        for name, t, o in zip(names, ref, ours):
-            rows.append(row("Table 3.1 (D_hat [D1])", f"{name}, N = {n}", t, half_digit(t), o, red["size"]))
+        fns = (lambda x: x["Dmin"], lambda x: x["D0"], lambda x: x["D3"], lambda x: x["D0"] / x["Dmin"],
+               lambda x: x["D3"] / x["Dmin"], lambda x: (x["D0"] - x["D3"]) / x["Dmin"])
+        for name, t, fn in zip(names, ref, fns):
+            rows.append(row("Table 3.1 (D_hat [D1])", f"{name}, N = {n}", t, half_digit(t),
+                            [fn(x) for x in runs_n], red["size"], rel_sd_guess=rel(fn)))
     # Table A.2
     for n, ref in TABLE_A_2.items():
         if n not in cfg.sizes:
             continue
         for (t, sd), k in zip(ref, ("n5", "n6", "n7")):
             rows.append(row("Table A.2 (max. compression)", f"{k}, N = {n}", t, max(sd, half_digit(t)),
-                            [x[k] for x in size_of(n)], red["size"]))
+                            [x[k] for x in size_of(n)], red["size"], rel_sd_guess=rel(lambda x, k=k: x[k])))
     # §3.2
     if "standard_563_s1" in m:
         rows.append(row("§3.2 (5.63 mm/s)", "F_max [N], N = 368, standard.nml", 15.26, 0.24,
-                        [m["standard_563_s1"]["F_max_N"]], "1 seed (thesis: 10)"))
+                        [m["standard_563_s1"]["F_max_N"]], "1 seed (thesis: 10)",
+                        rel_sd_guess=rel(lambda x: x["F_max_N"])))
     # Table 5.2
     for n in cfg.t52_sizes:
         ap = {s: m[f"t52_N{n:04d}_allpairs_s{s}"]["F_max_N"] for s in cfg.t52_seeds}
@@ -335,7 +351,7 @@ def build_table(cfg: Config, dirs: Mapping[str, Path], order: float) -> pd.DataF
             rows.append(row("Table 5.2", f"F_max O(N^2) [N], N = {n}", TABLE_3_2[n][0],
                             TABLE_3_2[n][1], list(ap.values()), red["t52"]))
         rows.append(row("Table 5.2", f"(F_Verlet - F_O(N^2))/F_Verlet [%], N = {n}",
-                        TABLE_5_2_PCT.get(n, math.nan), half_digit(0),
+                        TABLE_5_2_PCT.get(n, math.nan), TABLE_5_2_SE.get(n, math.nan),
                         [100 * (th[s] - ap[s]) / th[s] for s in cfg.t52_seeds], red["t52"],
                         "thesis lists: r_v 11.26, r_c 7.13, every listed pair"))
         rows.append(row("ours (no thesis value)", f"Verlet 4.13 + tail vs O(N^2) [%], N = {n}",
@@ -343,7 +359,7 @@ def build_table(cfg: Config, dirs: Mapping[str, Path], order: float) -> pd.DataF
                         "bias of the shipped numerics at H_f = 20 D1"))
     # §2.3.4
     rows.append(row("§2.3.4 (Fig. 2.8)", "observed order, Stormer-Verlet", 2.0, 0.05, [order],
-                    "" if cfg.name == "full" else "QUICK: 3 steps"))
+                    "" if cfg.name == "full" else "QUICK (3 steps)"))
     # chapter 4, a = 0.6
     bi = {r: [m[f"bi_a060_R{r:.2f}_s{s}"] for s in cfg.bi_seeds] for r in cfg.bi_r}
     if 1.0 in bi:
@@ -381,22 +397,23 @@ def build_table(cfg: Config, dirs: Mapping[str, Path], order: float) -> pd.DataF
         if alt is None or ref is None:
             continue
         for k, unit in (("F_max_N", "N"), ("n6", "1"), ("Psi6_local", "1")):
-            rows.append(row("tilt: eq. 4.10 reading (baseline = ours, eq. 2.10)", f"{k} [{unit}], {label}",
-                            ref[k], 0.0, [alt[k]], red["bi"], "same seed; a = 0.6, R > 0: refused "
-                            "(E > D2, negative normal force)"))
+            rows.append(row("tilt: eq. 4.10 reading (thesis column = ours, eq. 2.10)",
+                            f"{k} [{unit}], {label}", ref[k], 0.0, [alt[k]], red["bi"],
+                            "same seed; a = 0.6, R > 0: refused (E > D2, negative normal force)",
+                            compare=False))
     return pd.DataFrame(rows)
 
 
 def markdown(df: pd.DataFrame) -> str:
     """The table as GitHub markdown."""
     f = lambda v, spec: "-" if v is None or (isinstance(v, float) and math.isnan(v)) else format(v, spec)  # noqa: E731
-    lines = ["| experiment | quantity | thesis | +- | ours | seed sd | runs | diff | diff % | agree | reduced | note |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    lines = ["| experiment | quantity | thesis | +- | ours | seed sd | runs | diff | diff % | agree (2 sigma) "
+             "| reduced | note |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in df.to_dict("records"):
         lines.append(f"| {r['experiment']} | {r['quantity']} | {f(r['thesis'], '.4g')} | "
                      f"{f(r['thesis_sd'], '.2g')} | {f(r['ours'], '.4g')} | {f(r['ours_sd'], '.2g')} | "
                      f"{r['n_runs']} | {f(r['diff'], '+.3g')} | {f(r['diff_pct'], '+.1f')} | "
-                     f"{'yes' if r['agree'] else '**no**'} | {r['reduced']} | {r['note']} |")
+                     f"{'**no**' if r['agree'] == 'no' else r['agree']} | {r['reduced']} | {r['note']} |")
     return "\n".join(lines) + "\n"
 
 
@@ -427,6 +444,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     table.to_csv(res / f"thesis{suffix}.csv", index=False)
     head = (f"bench/thesis.py {'--quick ' if args.quick else ''}(commit {git_commit()}, "
             f"{time.perf_counter() - t0:.0f} s wall, {args.workers} worker(s))\n\n")
+    if args.quick:
+        head += "".join(f"- {k}: {v}\n" for k, v in LEGEND.items()) + "\n"
     (res / f"thesis{suffix}.md").write_text(head + markdown(table))
     print(head + markdown(table))
     return 0
