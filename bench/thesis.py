@@ -315,9 +315,11 @@ def build_table(cfg: Config, dirs: Mapping[str, Path], order: float) -> pd.DataF
     if len(set(fit_n)) >= 3:
         fit = fit_linear(fit_n, fit_f)
         rows.append(row("Table 5.1", "fit slope [N/particle], N = 368..736", TABLE_5_1["slope"],
-                        half_digit(0, 4), [fit.slope], red["size"], f"+- {fit.slope_err:.4f} (fit)"))
+                        half_digit(0, 4), [fit.slope], red["size"], f"+- {fit.slope_err:.4f} (fit)",
+                        rel_sd_guess=fit.slope_err / abs(fit.slope)))
         rows.append(row("Table 5.1", "fit intercept [N]", TABLE_5_1["intercept"], half_digit(0),
-                        [fit.intercept], red["size"], f"+- {fit.intercept_err:.2f} (fit)"))
+                        [fit.intercept], red["size"], f"+- {fit.intercept_err:.2f} (fit)",
+                        rel_sd_guess=fit.intercept_err / abs(fit.intercept)))
     # Table 3.1
     names = ("D_min", "D_0 (start of compression)", "D_3 (end of expansion)", "D_0/D_min",
              "D_3/D_min", "(D_0 - D_3)/D_min (normalised hysteresis)")
