@@ -444,8 +444,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     res = ROOT / "bench" / "results"
     res.mkdir(parents=True, exist_ok=True)
     table.to_csv(res / f"thesis{suffix}.csv", index=False)
+    engine_s = sum(float(json.loads((d / "run.json").read_text())["wall_time_s"]) for d in dirs.values())
     head = (f"bench/thesis.py {'--quick ' if args.quick else ''}(commit {git_commit()}, "
-            f"{time.perf_counter() - t0:.0f} s wall, {args.workers} worker(s))\n\n")
+            f"{time.perf_counter() - t0:.0f} s wall for this invocation with {args.workers} worker(s); "
+            f"{len(dirs)} engine runs totalling {engine_s:.0f} s of engine time, reused when unchanged)\n\n")
     if args.quick:
         head += "".join(f"- {k}: {v}\n" for k, v in LEGEND.items()) + "\n"
     (res / f"thesis{suffix}.md").write_text(head + markdown(table))
