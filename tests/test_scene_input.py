@@ -70,6 +70,16 @@ def test_bad_value_is_refused_with_key_and_range(overrides, pattern):
         validate(Scene.read(RUNS / "demo.nml").with_overrides(overrides))
 
 
+def test_tilt_eq_4_10_refused_where_its_normal_force_is_negative():
+    """Eq. 4.10 (no - phi) on a 3 mm magnet in a 3.1 mm gap: phi + theta > 90 deg, so
+    eq. 4.11's cos(phi + theta) < 0; the scene is refused, naming the key. The 6 mm
+    standard bed (gap < D) is accepted."""
+    scene = Scene.read(RUNS / "bidisperse" / "a060.nml").with_overrides({"physics.tilt": "eq_4_10"})
+    with pytest.raises(SceneError, match=r"&physics tilt = 'eq_4_10': needs gap < smallest diameter"):
+        validate(scene)
+    assert validate(Scene.read(RUNS / "demo.nml").with_overrides({"physics.tilt": "eq_4_10"}))
+
+
 def test_type_error_in_namelist_text(tmp_path):
     path = tmp_path / "typo.nml"
     path.write_text((RUNS / "demo.nml").read_text().replace("n = 368", "n = 3x68"))

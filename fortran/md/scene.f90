@@ -879,6 +879,12 @@ contains
       if (sc%gap <= sc%thickness .or. sc%gap >= dmax) call bad('material', 'gap', &
            rstr(sc%gap), 'with dry friction on, every magnet must be able to tilt: '// &
            'thickness < gap < sqrt(D_min^2 + thickness^2) = '//rstr(dmax)//' m')
+      ! eq. 4.10 without - phi: phi + theta < 90 deg (a positive normal force, eq. 4.11)
+      ! needs E/sqrt(D^2+eps^2) < cos(phi) = D/sqrt(D^2+eps^2), i.e. gap < D_min
+      dmax = sc%diameter*minval(sc%species_diameter(1:max(1, min(sc%n_species, max_species))))
+      if (trim(sc%tilt) == 'eq_4_10' .and. sc%gap >= dmax) call bad('physics', 'tilt', &
+           "'"//trim(sc%tilt)//"'", 'needs gap < smallest diameter = '//rstr(dmax)//' m (gap = '// &
+           rstr(sc%gap)//' m: phi + theta >= 90 deg, the normal force of eq. 4.11 would be < 0)')
     end if
 
     call choice('integration', 'integrator', sc%integrator, &
