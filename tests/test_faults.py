@@ -22,7 +22,6 @@ from pyorch.scene import Scene, parse_override, resolve_file, validate
 
 ROOT = Path(__file__).resolve().parents[1]
 FILES = ("piston.dat", "particles.dat", "mean_distance.dat", "energy.dat")
-HEADER = 88  # checkpoint header bytes (fortran/checkpoint.f90)
 SMALL = {"particles.n": 60, "cell.width": 16.0, "cell.height": 20.0, "protocol.h_start": 20.0,
          "protocol.h0": 20.0, "protocol.hf": 9.0, "protocol.t_relax": 2.0,
          "protocol.piston_speed": 4.0, "protocol.t_final": 0.5, "output.piston_every": 10,
@@ -149,12 +148,31 @@ def test_a_failed_open_or_rename_stops_with_exit_4_and_keeps_the_old_file(small,
 
 # ---- 2. resume trusts nothing it has not verified ---------------------------------
 
-def _flip(off: int):
+def _flip_at(find):
+    """Flip one bit of the byte at offset find(bytes) (layout-agnostic: the
+    fields are located by their known values, not by a hard-coded layout)."""
     def f(p: Path) -> None:
         b = bytearray(p.read_bytes())
-        b[off] ^= 0x10
+        b[find(bytes(b))] ^= 0x10
         p.write_bytes(bytes(b))
     return f
+
+
+def _flip(off: int):
+    return _flip_at(lambda b: off)
+
+
+def _field(value: bytes, skip: int = 0):
+    """Offset of the first occurrence of value after byte `skip`."""
+    def find(b: bytes) -> int:
+        i = b.find(value, skip)
+        assert i >= 0, value
+        return i
+    return find
+
+
+def _payload_byte(b: bytes) -> int:
+    return len(b) // 2   # the middle of the file is particle data
 
 
 def _from_other_seed(tmp: Path, small_path: Path):
@@ -166,13 +184,18 @@ def _from_other_seed(tmp: Path, small_path: Path):
     return f
 
 
+_RUN: list[Path] = []   # the run directory under test (for its engine version)
 CORRUPTIONS = {
-    "payload mantissa byte": (_flip(HEADER + 200), "corrupted (payload checksum mismatch)"),
-    "step field": (_flip(HEADER + 4), "corrupted (payload checksum mismatch)"),
+    "payload mantissa byte": (_flip_at(_payload_byte), "corrupted (payload checksum mismatch)"),
+    # the checkpoint is taken at step 800: its step counter is the int64 800
+    "step field": (_flip_at(_field((800).to_bytes(8, "little"), 12)),
+                   "corrupted (payload checksum mismatch)"),
     "magic": (_flip(0), "not a checkpoint"),
     "format version": (_flip(8), "checkpoint format"),
-    "engine version": (_flip(17), "written by engine version"),
-    "kind": (_flip(33), "checkpoint of kind"),
+    "engine version": (_flip_at(lambda b: b.find(json.loads(
+        (Path(_RUN[0]) / "run.json").read_text())["version"].encode())),
+        "written by engine version"),
+    "kind": (_flip_at(_field(b"magnet_bed")), "checkpoint of kind"),
     "truncated": (lambda p: p.write_bytes(p.read_bytes()[:-100]), "truncated or extended"),
     "extended": (lambda p: p.write_bytes(p.read_bytes() + b"\0" * 8), "truncated or extended"),
     "empty": (lambda p: p.write_bytes(b""), "too short to be a checkpoint"),
@@ -186,6 +209,7 @@ def test_resume_refuses_a_checkpoint_it_cannot_verify(small, tmp_path, what):
     d = tmp_path / "r"
     assert magbed(str(path), "--out", str(d), "--quiet", "--stop-at", "800").returncode == 0
     ck = d / "checkpoint.bin"
+    _RUN[:] = [d]
     if what == "other seed":
         damage, expect = _from_other_seed(tmp_path, path), "belongs to another scene"
     elif what == "edited scene":
@@ -490,7 +514,7 @@ def test_cli_keeps_the_engines_exit_codes(small, tmp_path):
     d = tmp_path / "r"
     assert magbed(str(path), "--out", str(d), "--quiet", "--stop-at", "400").returncode == 0
     assert main(["run", str(path), "--out", str(d), "--quiet", "--no-plots"]) == 4  # reused
-    _flip(HEADER + 100)(d / "checkpoint.bin")
+    _flip_at(_payload_byte)(d / "checkpoint.bin")
     assert main(["run", "--resume", str(d), "--quiet", "--no-plots"]) == 4  # corrupted
     (d / "run.json").write_text("")
     with pytest.raises(RunError, match="run.json is empty"):
