@@ -1,0 +1,140 @@
+!> The event calendar of the event-driven engine: an indexed binary min-heap
+!> holding at most one entry per particle (its earliest predicted event).
+!> Insert, update (decrease or increase key), remove and peek are O(log N) /
+!> O(1); the heap never holds more than N entries, so stale events cost no
+!> memory (they are detected at the top by the collision counters of the
+!> partners and re-predicted, module edmd_core).
+!> Ties are broken by the particle id (smaller first), so the order of events
+!> is a function of the keys only and not of the history of the heap: the
+!> calendar rebuilt on restore pops in the same order as the original.
+module edmd_heap
+  use kinds, only: dp
+  implicit none
+  private
+
+  public :: heap_t, heap_init, heap_set, heap_remove, heap_top, heap_size, heap_check
+
+  type :: heap_t
+    integer :: n = 0                       !< entries in the heap
+    integer, allocatable :: item(:)        !< item(k): particle at heap slot k
+    integer, allocatable :: slot(:)        !< slot(i): heap slot of particle i (0: absent)
+    real(dp), allocatable :: key(:)        !< key(i): event time of particle i
+  end type heap_t
+
+contains
+
+  subroutine heap_init(h, n)
+    type(heap_t), intent(out) :: h
+    integer, intent(in) :: n
+    allocate(h%item(n), h%slot(n), h%key(n))
+    h%n = 0
+    h%slot = 0
+    h%key = huge(1.0_dp)
+  end subroutine heap_init
+
+  pure logical function before(h, a, b)
+    type(heap_t), intent(in) :: h
+    integer, intent(in) :: a, b
+    before = h%key(a) < h%key(b) .or. (h%key(a) == h%key(b) .and. a < b)
+  end function before
+
+  !> Insert particle i with key t, or move it to key t.
+  subroutine heap_set(h, i, t)
+    type(heap_t), intent(inout) :: h
+    integer, intent(in) :: i
+    real(dp), intent(in) :: t
+    integer :: k
+    h%key(i) = t
+    k = h%slot(i)
+    if (k == 0) then
+      h%n = h%n + 1
+      k = h%n
+      h%item(k) = i
+      h%slot(i) = k
+    end if
+    call sift_up(h, k)
+    call sift_down(h, h%slot(i))
+  end subroutine heap_set
+
+  subroutine heap_remove(h, i)
+    type(heap_t), intent(inout) :: h
+    integer, intent(in) :: i
+    integer :: k, last
+    k = h%slot(i)
+    if (k == 0) return
+    last = h%item(h%n)
+    h%item(k) = last
+    h%slot(last) = k
+    h%n = h%n - 1
+    h%slot(i) = 0
+    h%key(i) = huge(1.0_dp)
+    if (k <= h%n) then
+      call sift_up(h, k)
+      call sift_down(h, h%slot(last))
+    end if
+  end subroutine heap_remove
+
+  !> Particle with the earliest event (0 if the heap is empty).
+  pure integer function heap_top(h)
+    type(heap_t), intent(in) :: h
+    heap_top = 0
+    if (h%n > 0) heap_top = h%item(1)
+  end function heap_top
+
+  pure integer function heap_size(h)
+    type(heap_t), intent(in) :: h
+    heap_size = h%n
+  end function heap_size
+
+  !> .true. if the heap property and the slot index hold (for tests).
+  logical function heap_check(h)
+    type(heap_t), intent(in) :: h
+    integer :: k
+    heap_check = .true.
+    do k = 1, h%n
+      if (h%slot(h%item(k)) /= k) heap_check = .false.
+      if (k > 1) then
+        if (before(h, h%item(k), h%item(k/2))) heap_check = .false.
+      end if
+    end do
+  end function heap_check
+
+  subroutine sift_up(h, k0)
+    type(heap_t), intent(inout) :: h
+    integer, intent(in) :: k0
+    integer :: k, p, a
+    k = k0
+    a = h%item(k)
+    do while (k > 1)
+      p = k/2
+      if (.not. before(h, a, h%item(p))) exit
+      h%item(k) = h%item(p)
+      h%slot(h%item(k)) = k
+      k = p
+    end do
+    h%item(k) = a
+    h%slot(a) = k
+  end subroutine sift_up
+
+  subroutine sift_down(h, k0)
+    type(heap_t), intent(inout) :: h
+    integer, intent(in) :: k0
+    integer :: k, c, a
+    k = k0
+    a = h%item(k)
+    do
+      c = 2*k
+      if (c > h%n) exit
+      if (c < h%n) then
+        if (before(h, h%item(c + 1), h%item(c))) c = c + 1
+      end if
+      if (.not. before(h, h%item(c), a)) exit
+      h%item(k) = h%item(c)
+      h%slot(h%item(k)) = k
+      k = c
+    end do
+    h%item(k) = a
+    h%slot(a) = k
+  end subroutine sift_down
+
+end module edmd_heap
