@@ -79,6 +79,8 @@ module edmd_core
     integer(i8) :: n_pair = 0, n_wall = 0, n_stick = 0, n_bounce = 0, n_cross = 0
     integer(i8) :: n_stale = 0              !< stale calendar entries re-predicted (not state)
     integer :: n_free = 0
+    integer(i8) :: n_same = 0               !< consecutive events at the same time (guard)
+    integer(i8) :: max_same = 0             !< guard: allowed zero-time cascade length
     real(dp) :: virial = 0                  !< sum of r_ij . dp_i over free-free collisions [M L^2/tau]
     real(dp) :: wall_impulse = 0            !< sum of |dp| over wall hits [M L/tau]
     ! aggregate
@@ -283,8 +285,10 @@ contains
     integer :: i, kx, ky, nx, ny
     real(dp) :: rm, x, y
     rm = maxval(s%r(first:))
-    nx = int(s%lx/(2.0_dp*rm))
-    ny = int(s%ly/(2.0_dp*rm))
+    ! Strictly fewer sites than fit: a row spanning wall to wall in exact contact is rigid
+    ! (a zero-time collision cascade that never ends), so every row keeps some slack.
+    nx = ceiling(s%lx/(2.0_dp*rm)) - 1
+    ny = ceiling(s%ly/(2.0_dp*rm)) - 1
     i = first
     outer: do ky = 0, ny - 1
       do kx = 0, nx - 1
@@ -329,6 +333,8 @@ contains
     type(ed_t), intent(inout) :: s
     integer :: i
     s%n_free = count(s%state == state_free)
+    s%n_same = 0
+    s%max_same = max(1000000_i8, 1000_i8*s%n)
     if (.not. s%use_heap) return
     call heap_init(s%heap, s%n)
     do i = 1, s%n
@@ -539,6 +545,18 @@ contains
         return
       end if
       te = max(te, s%t)                              ! the clock never runs back
+      if (k /= ev_cell) then
+        if (te == s%t) then
+          s%n_same = s%n_same + 1
+          if (s%n_same > s%max_same) then
+            call guard_fail(s, st, 'zero-time collision cascade (events without the clock '// &
+                 'advancing; a jammed contact network?)', i, p, 0.0_dp)
+            return
+          end if
+        else
+          s%n_same = 0
+        end if
+      end if
       select case (k)
       case (ev_cell)
         call cross(s, i, p)
@@ -646,7 +664,7 @@ contains
     s%coll(i) = s%coll(i) + 1
     s%coll(j) = s%coll(j) + 1
     s%n_pair = s%n_pair + 1
-    call log_event(s, ev_pair, i, j)
+    call log_event(s, ev_pair, min(i, j), max(i, j))
     if (s%use_heap) then
       call predict(s, i)
       call predict(s, j)
