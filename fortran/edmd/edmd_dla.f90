@@ -26,6 +26,7 @@ module edmd_dla
   public :: dla_t
 
   integer, parameter :: name_len = 32, max_species = 4
+  integer, parameter :: max_explicit = 16          !< disks of placement = 'explicit'
   integer(i8), parameter :: max_ticks = 1000000000000_i8
 
   type, extends(method_t) :: dla_t
@@ -43,6 +44,8 @@ module edmd_dla
     real(dp) :: kt = 1.0_dp                           !< [E]
     character(len=name_len) :: velocities = 'fixed_speed'
     character(len=name_len) :: placement = 'random'
+    real(dp) :: x0(max_explicit) = 0, y0(max_explicit) = 0     !< 'explicit' positions [L]
+    real(dp) :: vx0(max_explicit) = 0, vy0(max_explicit) = 0   !< 'explicit' velocities [L/tau]
     integer(i8) :: seed = 1
     ! &aggregate
     logical :: sticking = .true.
@@ -59,7 +62,6 @@ module edmd_dla
     integer(i8) :: frame_every = 50
     integer(i8) :: history_every = 5
     integer(i8) :: check_every = 1
-    integer(i8) :: checkpoint_every = 0
     logical :: log_events = .false.
     ! state
     type(ed_t) :: s
@@ -86,30 +88,32 @@ contains
     character(len=kind_len) :: kind
     character(len=128) :: title
     real(dp) :: lx, ly, radius(max_species), density(max_species), kt, seed_radius, seed_x, &
-         seed_y, tick, t_end, guard_tol
+         seed_y, tick, t_end, guard_tol, x0(max_explicit), y0(max_explicit), &
+         vx0(max_explicit), vy0(max_explicit)
     integer(i8) :: n_species, count(max_species), seed, frame_every, history_every, check_every, &
-         checkpoint_every, progress_every
+         checkpoint_every
     character(len=name_len) :: mass_rule, velocities, placement, calendar
     logical :: sticking, last_bounces, stop_when_done, log_events
     integer :: u, ios
     character(len=msg_len) :: iom
     namelist /scene/ kind, title
     namelist /box/ lx, ly
-    namelist /disks/ n_species, count, radius, density, mass_rule, kt, velocities, placement, seed
+    namelist /disks/ n_species, count, radius, density, mass_rule, kt, velocities, placement, &
+         seed, x0, y0, vx0, vy0
     namelist /aggregate/ sticking, seed_radius, seed_x, seed_y, last_bounces, stop_when_done
     namelist /run/ calendar, tick, t_end, guard_tol
-    namelist /output/ frame_every, history_every, check_every, checkpoint_every, log_events, &
-         progress_every
+    namelist /output/ frame_every, history_every, check_every, checkpoint_every, log_events
     kind = self%kind; title = self%title; lx = self%lx; ly = self%ly
     n_species = self%n_species; count = self%count; radius = self%radius
     density = self%density; mass_rule = self%mass_rule; kt = self%kt
     velocities = self%velocities; placement = self%placement; seed = self%seed
+    x0 = self%x0; y0 = self%y0; vx0 = self%vx0; vy0 = self%vy0
     sticking = self%sticking; seed_radius = self%seed_radius; seed_x = self%seed_x
     seed_y = self%seed_y; last_bounces = self%last_bounces; stop_when_done = self%stop_when_done
     calendar = self%calendar; tick = self%tick; t_end = self%t_end; guard_tol = self%guard_tol
     frame_every = self%frame_every; history_every = self%history_every
     check_every = self%check_every; checkpoint_every = self%checkpoint_every
-    log_events = self%log_events; progress_every = 0
+    log_events = self%log_events
     open(newunit=u, file=path, status='old', action='read', iostat=ios, iomsg=iom)
     if (ios /= 0) then
       call set_error(st, exit_io, trim(path)//': cannot open scene file: '//trim(iom))
@@ -133,6 +137,7 @@ contains
     self%n_species = n_species; self%count = count; self%radius = radius
     self%density = density; self%mass_rule = mass_rule; self%kt = kt
     self%velocities = velocities; self%placement = placement; self%seed = seed
+    self%x0 = x0; self%y0 = y0; self%vx0 = vx0; self%vy0 = vy0
     self%sticking = sticking; self%seed_radius = seed_radius; self%seed_x = seed_x
     self%seed_y = seed_y; self%last_bounces = last_bounces; self%stop_when_done = stop_when_done
     self%calendar = calendar; self%tick = tick; self%t_end = t_end; self%guard_tol = guard_tol
@@ -188,7 +193,7 @@ contains
     call check_choice(path, 'disks', 'velocities', self%velocities, [character(len=name_len) :: &
          'fixed_speed', 'maxwell'], st)
     call check_choice(path, 'disks', 'placement', self%placement, [character(len=name_len) :: &
-         'random', 'lattice'], st)
+         'random', 'lattice', 'explicit'], st)
     call check_int(path, 'disks', 'seed', self%seed, 0_i8, huge(1_i8), st)
     call check_real(path, 'aggregate', 'seed_radius', self%seed_radius, 0.0_dp, rmax_box, &
          .not. self%sticking, st)
@@ -199,6 +204,8 @@ contains
       call check_real(path, 'aggregate', 'seed_y', self%seed_y, self%seed_radius, &
            self%ly - self%seed_radius, .true., st)
     end if
+    if (self%placement == 'explicit') call validate_explicit(self, path, st)
+    if (st%code /= 0) return
     eta = (sum(pi*self%radius(1:self%n_species)**2*real(self%count(1:self%n_species), dp)) + &
          pi*self%seed_radius**2)/(self%lx*self%ly)
     if (eta > 0.9_dp) call set_error(st, exit_bad_input, trim(path)//': &disks count = '// &
@@ -216,6 +223,52 @@ contains
     call check_int(path, 'output', 'check_every', self%check_every, 0_i8, max_ticks, st)
     call check_int(path, 'output', 'checkpoint_every', self%checkpoint_every, 0_i8, max_ticks, st)
   end subroutine validate
+
+  !> placement = 'explicit': at most max_explicit disks, inside the box, no overlap (contact
+  !> allowed), finite velocities.
+  subroutine validate_explicit(self, path, st)
+    class(dla_t), intent(in) :: self
+    character(len=*), intent(in) :: path
+    type(status_t), intent(inout) :: st
+    real(dp) :: r(max_explicit + 1), x(max_explicit + 1), y(max_explicit + 1)
+    integer :: n, i, j, k, i0
+    character(len=8) :: is
+    n = int(sum(self%count(1:self%n_species)))
+    call check_int(path, 'disks', 'count (sum, placement = ''explicit'')', int(n, i8), 1_i8, &
+         int(max_explicit, i8), st)
+    if (st%code /= 0) return
+    i0 = 0
+    do k = 1, int(self%n_species)
+      r(i0 + 1:i0 + self%count(k)) = self%radius(k)
+      i0 = i0 + int(self%count(k))
+    end do
+    do i = 1, n
+      write(is, '(a,i0,a)') '(', i, ')'
+      call check_real(path, 'disks', 'x0'//trim(is), self%x0(i), r(i), self%lx - r(i), .true., st)
+      call check_real(path, 'disks', 'y0'//trim(is), self%y0(i), r(i), self%ly - r(i), .true., st)
+      call check_real(path, 'disks', 'vx0'//trim(is), self%vx0(i), -1.0e12_dp, 1.0e12_dp, .true., &
+           st)
+      call check_real(path, 'disks', 'vy0'//trim(is), self%vy0(i), -1.0e12_dp, 1.0e12_dp, .true., &
+           st)
+    end do
+    if (st%code /= 0) return
+    x(1:n) = self%x0(1:n); y(1:n) = self%y0(1:n)
+    if (self%seed_radius > 0) then
+      n = n + 1
+      x(n) = self%seed_x; y(n) = self%seed_y; r(n) = self%seed_radius
+    end if
+    do i = 1, n
+      do j = i + 1, n
+        if ((x(i) - x(j))**2 + (y(i) - y(j))**2 < (r(i) + r(j))**2*(1.0_dp - 1.0e-12_dp)) then
+          write(is, '(i0)') i
+          call set_error(st, exit_bad_input, trim(path)//': &disks x0('//trim(is)//'), y0('// &
+               trim(is)//'): disk overlaps disk '//int_str(int(j, i8))// &
+               ' (the seed when it is the last): allowed distances >= r_i + r_j')
+          return
+        end if
+      end do
+    end do
+  end subroutine validate_explicit
 
   !> Disk 1 is the seed (static, at seed_x, seed_y) when seed_radius > 0; the
   !> free disks follow, species by species.
@@ -253,11 +306,20 @@ contains
     g%s = self%seed
     if (self%placement == 'lattice') then
       call ed_place_lattice(self%s, first, st)
+    else if (self%placement == 'explicit') then
+      do i0 = first, n
+        call ed_put(self%s, i0, self%x0(i0 - first + 1), self%y0(i0 - first + 1))
+      end do
     else
       call ed_place_random(self%s, g, first, st)
     end if
     if (st%code /= 0) return
-    call ed_velocities(self%s, g, trim(self%velocities), self%kt)
+    if (self%placement == 'explicit') then
+      self%s%v(1, first:) = self%vx0(1:n - first + 1)
+      self%s%v(2, first:) = self%vy0(1:n - first + 1)
+    else
+      call ed_velocities(self%s, g, trim(self%velocities), self%kt)
+    end if
     call ed_start(self%s)
     self%step = 0
     self%t_hist = 0
@@ -270,7 +332,7 @@ contains
     type(status_t), intent(inout) :: st
     integer :: u, ios, k
     character(len=msg_len) :: iom
-    character(len=3) :: ks
+    character(len=4) :: ks
     open(newunit=u, file=path, status='replace', action='write', iostat=ios, iomsg=iom)
     if (ios /= 0) then
       call set_error(st, exit_io, trim(path)//': cannot write resolved scene: '//trim(iom))
@@ -299,6 +361,15 @@ contains
     call put_real(u, 'kt', self%kt, 'E')
     call put_str(u, 'velocities', self%velocities, '')
     call put_str(u, 'placement', self%placement, '')
+    if (self%placement == 'explicit') then
+      do k = 1, max_explicit
+        write(ks, '(a,i0,a)') '(', k, ')'
+        call put_real(u, 'x0'//trim(ks), self%x0(k), 'L')
+        call put_real(u, 'y0'//trim(ks), self%y0(k), 'L')
+        call put_real(u, 'vx0'//trim(ks), self%vx0(k), 'L/tau')
+        call put_real(u, 'vy0'//trim(ks), self%vy0(k), 'L/tau')
+      end do
+    end if
     call put_int(u, 'seed', self%seed, 'RNG of the initial state')
     write(u, '(a)') '/'
     write(u, '(a)') '&aggregate'
