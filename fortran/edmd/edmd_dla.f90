@@ -260,10 +260,12 @@ contains
     do i = 1, n
       do j = i + 1, n
         if ((x(i) - x(j))**2 + (y(i) - y(j))**2 < (r(i) + r(j))**2*(1.0_dp - 1.0e-12_dp)) then
-          write(is, '(i0)') i
+          k = merge(i, j, j == n .and. self%seed_radius > 0)
+          write(is, '(i0)') k
           call set_error(st, exit_bad_input, trim(path)//': &disks x0('//trim(is)//'), y0('// &
-               trim(is)//'): disk overlaps disk '//int_str(int(j, i8))// &
-               ' (the seed when it is the last): allowed distances >= r_i + r_j')
+               trim(is)//'): disk '//trim(is)//' overlaps '//merge('the seed disk      ', &
+               'disk '//int_str(int(i, i8))//repeat(' ', 14 - len(int_str(int(i, i8)))), &
+               k == i)//': allowed distances >= r_i + r_j')
           return
         end if
       end do
