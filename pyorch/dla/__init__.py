@@ -31,7 +31,7 @@ from pyorch.dla.fractal import Fit
 
 __all__ = ["frames", "history", "aggregate", "events", "frame_at", "mean_free_path",
            "henderson_z", "dimensions", "save_run_plots", "save_growth_movie",
-           "default_metrics", "fractal"]
+           "write_tables", "METRIC_KEYS", "default_metrics", "fractal"]
 
 
 def frames(run_dir: str | Path) -> pd.DataFrame:
@@ -71,14 +71,11 @@ def mean_free_path(n_disks: float, area: float, radius: float) -> float:
     return float(area / (np.sqrt(2.0) * n_disks * 2.0 * radius))
 
 
-def henderson_z(eta: ArrayLikeF) -> NDArray[np.float64]:
+def henderson_z(eta: float | NDArray[np.float64]) -> NDArray[np.float64]:
     """Compressibility factor P A / (N kT) of hard disks (Henderson 1975):
     Z = (1 + eta^2/8) / (1 - eta)^2, eta the packing fraction."""
     e = np.asarray(eta, dtype=float)
     return (1.0 + e**2 / 8.0) / (1.0 - e) ** 2
-
-
-ArrayLikeF = float | NDArray[np.float64]
 
 
 def dimensions(run_dir: str | Path, n_min: int = 30, r_min_diameters: float = 3.0,
@@ -108,9 +105,11 @@ def _circles(ax, x, y, r, colors, **kw):  # type: ignore[no-untyped-def]
     return ec
 
 
-def save_run_plots(run_dir: str | Path, out: str | Path | None = None) -> list[Path]:
+def save_run_plots(run_dir: str | Path, out: str | Path | None = None,
+                   full: bool = False) -> list[Path]:
     """``plots/aggregate.png`` (members coloured by sticking time, last frame's gas in grey),
-    ``plots/dimension.png`` (R_g(n) and M(r) with their fits), ``plots/history.png``."""
+    ``plots/dimension.png`` (R_g(n) and M(r) with their fits), ``plots/history.png``;
+    ``full`` adds ``plots/growth.gif`` (the frames as a movie)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -184,7 +183,23 @@ def save_run_plots(run_dir: str | Path, out: str | Path | None = None) -> list[P
         fig.savefig(out / "history.png", dpi=110)
         plt.close(fig)
         written.append(out / "history.png")
+    if full and (run_dir / "frames.dat").is_file():
+        written.append(save_growth_movie(run_dir, out / "growth.gif"))
     return written
+
+
+def write_tables(run_dir: str | Path, out: str | Path | None = None) -> list[Path]:
+    """``analysis/dimension.csv``: D by each estimator with its fit error and range."""
+    run_dir = Path(run_dir)
+    out = Path(out) if out is not None else run_dir / "analysis"
+    out.mkdir(parents=True, exist_ok=True)
+    if not (run_dir / "aggregate.dat").is_file() or len(aggregate(run_dir)) <= 60:
+        return []
+    rows = [{"estimator": k, "D": f.d, "fit_err": f.err, "range_lo": f.lo, "range_hi": f.hi,
+             "points": f.n_points} for k, f in dimensions(run_dir).items()]
+    path = out / "dimension.csv"
+    pd.DataFrame(rows).to_csv(path, index=False)
+    return [path]
 
 
 def save_growth_movie(run_dir: str | Path, out: str | Path, fps: int = 10) -> Path:
@@ -228,9 +243,16 @@ def _scene_value(text: str, key: str) -> float:
     return float(m.group(1).replace("d", "e").replace("D", "e"))
 
 
-def default_metrics(run_dir: str | Path) -> dict[str, float]:
-    """Sweep results of one run: members, D by R_g and by mass-radius (with fit errors)."""
-    out: dict[str, float] = {}
+#: columns of :func:`default_metrics`
+METRIC_KEYS = ("members", "D_rg", "D_rg_err", "D_mass_radius", "D_mass_radius_err",
+               "free_final", "E_kin_final")
+
+
+def default_metrics(run: object) -> dict[str, float]:
+    """Sweep results of one run (a :class:`pyorch.run.Run` or a run directory): members,
+    D by R_g and by mass-radius (with fit errors), free disks and E_kin [E] at the end."""
+    run_dir = Path(getattr(run, "dir", run))  # type: ignore[arg-type]
+    out: dict[str, float] = {k: float("nan") for k in METRIC_KEYS}
     if (Path(run_dir) / "aggregate.dat").is_file():
         ag = aggregate(run_dir)
         out["members"] = float(len(ag))
