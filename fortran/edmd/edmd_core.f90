@@ -36,7 +36,7 @@ module edmd_core
   private
 
   public :: ed_t, ed_setup, ed_place_random, ed_place_lattice, ed_velocities, ed_start, &
-       ed_run_until, ed_position, ed_kinetic, ed_momentum, ed_check_overlaps, ed_rebuild_cells, ed_put, &
+       ed_run_until, ed_position, ed_kinetic, ed_momentum, ed_check_overlaps, ed_rebuild_cells, ed_put, ed_sort_by_cell, &
        rng_t, rng_uniform, rng_normal, ev_pair, ev_wall, ev_cell, ev_stick, ev_bounce
   public :: state_free, state_stuck, state_seed
 
@@ -210,6 +210,34 @@ contains
       call cell_insert(s, i, c)
     end do
   end subroutine ed_rebuild_cells
+
+  !> Renumber disks first..n in cell order (row by row; stable): neighbours in space are
+  !> neighbours in memory, which keeps the event loop in cache at large N (bench/RESULTS.md).
+  !> Call after placement, before velocities are drawn.
+  subroutine ed_sort_by_cell(s, first)
+    type(ed_t), intent(inout) :: s
+    integer, intent(in) :: first
+    integer :: i, k, nc
+    integer, allocatable :: cnt(:), perm(:)
+    nc = s%ncx*s%ncy
+    allocate(cnt(0:nc), perm(first:s%n))
+    cnt = 0
+    do i = first, s%n
+      cnt(s%cell(i) + 1) = cnt(s%cell(i) + 1) + 1
+    end do
+    do k = 1, nc
+      cnt(k) = cnt(k) + cnt(k - 1)
+    end do
+    do i = first, s%n
+      cnt(s%cell(i)) = cnt(s%cell(i)) + 1
+      perm(first - 1 + cnt(s%cell(i))) = i
+    end do
+    s%x(:, first:) = s%x(:, perm)
+    s%r(first:) = s%r(perm)
+    s%m(first:) = s%m(perm)
+    s%cell(first:) = s%cell(perm)
+    call ed_rebuild_cells(s)
+  end subroutine ed_sort_by_cell
 
   !> Put disk i at (x, y) [L] into the cells (placement of static disks).
   subroutine ed_put(s, i, x, y)

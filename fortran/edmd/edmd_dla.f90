@@ -19,7 +19,7 @@ module edmd_dla
        put_str, put_logical, int_str, real_str
   use edmd_core, only: ed_t, ed_setup, ed_place_random, ed_place_lattice, ed_velocities, &
        ed_start, ed_run_until, ed_position, ed_kinetic, ed_momentum, ed_check_overlaps, &
-       ed_rebuild_cells, ed_put, rng_t, state_free, state_seed
+       ed_rebuild_cells, ed_put, ed_sort_by_cell, rng_t, state_free, state_seed
   implicit none
   private
 
@@ -273,7 +273,8 @@ contains
   end subroutine validate_explicit
 
   !> Disk 1 is the seed (static, at seed_x, seed_y) when seed_radius > 0; the
-  !> free disks follow, species by species.
+  !> free disks follow, species by species for 'lattice' and 'explicit'; random
+  !> placements are renumbered in cell order (memory locality).
   subroutine initial_state(self, st)
     class(dla_t), intent(inout) :: self
     type(status_t), intent(inout) :: st
@@ -314,6 +315,7 @@ contains
       end do
     else
       call ed_place_random(self%s, g, first, st)
+      if (st%code == 0) call ed_sort_by_cell(self%s, first)
     end if
     if (st%code /= 0) return
     if (self%placement == 'explicit') then

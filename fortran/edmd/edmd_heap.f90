@@ -19,6 +19,8 @@ module edmd_heap
     integer, allocatable :: item(:)        !< item(k): particle at heap slot k
     integer, allocatable :: slot(:)        !< slot(i): heap slot of particle i (0: absent)
     real(dp), allocatable :: key(:)        !< key(i): event time of particle i
+    real(dp), allocatable :: hkey(:)       !< hkey(k) = key(item(k)): keys in heap order, so the
+                                           !< sifts read contiguous memory (measured: bench)
   end type heap_t
 
 contains
@@ -26,16 +28,18 @@ contains
   subroutine heap_init(h, n)
     type(heap_t), intent(out) :: h
     integer, intent(in) :: n
-    allocate(h%item(n), h%slot(n), h%key(n))
+    allocate(h%item(n), h%slot(n), h%key(n), h%hkey(n))
     h%n = 0
     h%slot = 0
     h%key = huge(1.0_dp)
+    h%hkey = huge(1.0_dp)
   end subroutine heap_init
 
-  pure logical function before(h, a, b)
-    type(heap_t), intent(in) :: h
+  !> (ka, a) before (kb, b): earlier time, ties by the smaller particle id.
+  pure logical function before(ka, a, kb, b)
+    real(dp), intent(in) :: ka, kb
     integer, intent(in) :: a, b
-    before = h%key(a) < h%key(b) .or. (h%key(a) == h%key(b) .and. a < b)
+    before = ka < kb .or. (ka == kb .and. a < b)
   end function before
 
   !> Insert particle i with key t, or move it to key t.
@@ -52,6 +56,7 @@ contains
       h%item(k) = i
       h%slot(i) = k
     end if
+    h%hkey(k) = t
     call sift_up(h, k)
     call sift_down(h, h%slot(i))
   end subroutine heap_set
@@ -64,6 +69,7 @@ contains
     if (k == 0) return
     last = h%item(h%n)
     h%item(k) = last
+    h%hkey(k) = h%hkey(h%n)
     h%slot(last) = k
     h%n = h%n - 1
     h%slot(i) = 0
@@ -93,8 +99,9 @@ contains
     heap_check = .true.
     do k = 1, h%n
       if (h%slot(h%item(k)) /= k) heap_check = .false.
+      if (h%hkey(k) /= h%key(h%item(k))) heap_check = .false.
       if (k > 1) then
-        if (before(h, h%item(k), h%item(k/2))) heap_check = .false.
+        if (before(h%hkey(k), h%item(k), h%hkey(k/2), h%item(k/2))) heap_check = .false.
       end if
     end do
   end function heap_check
@@ -103,16 +110,20 @@ contains
     type(heap_t), intent(inout) :: h
     integer, intent(in) :: k0
     integer :: k, p, a
+    real(dp) :: ka
     k = k0
     a = h%item(k)
+    ka = h%hkey(k)
     do while (k > 1)
       p = k/2
-      if (.not. before(h, a, h%item(p))) exit
+      if (.not. before(ka, a, h%hkey(p), h%item(p))) exit
       h%item(k) = h%item(p)
+      h%hkey(k) = h%hkey(p)
       h%slot(h%item(k)) = k
       k = p
     end do
     h%item(k) = a
+    h%hkey(k) = ka
     h%slot(a) = k
   end subroutine sift_up
 
@@ -120,20 +131,24 @@ contains
     type(heap_t), intent(inout) :: h
     integer, intent(in) :: k0
     integer :: k, c, a
+    real(dp) :: ka
     k = k0
     a = h%item(k)
+    ka = h%hkey(k)
     do
       c = 2*k
       if (c > h%n) exit
       if (c < h%n) then
-        if (before(h, h%item(c + 1), h%item(c))) c = c + 1
+        if (before(h%hkey(c + 1), h%item(c + 1), h%hkey(c), h%item(c))) c = c + 1
       end if
-      if (.not. before(h, h%item(c), a)) exit
+      if (.not. before(h%hkey(c), h%item(c), ka, a)) exit
       h%item(k) = h%item(c)
+      h%hkey(k) = h%hkey(c)
       h%slot(h%item(k)) = k
       k = c
     end do
     h%item(k) = a
+    h%hkey(k) = ka
     h%slot(a) = k
   end subroutine sift_down
 
