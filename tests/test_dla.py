@@ -285,3 +285,45 @@ def test_explicit_overlap_refused(tmp_path: Path) -> None:
     with pytest.raises(SceneError, match=r"&disks x0\(1\), y0\(1\): disk 1 overlaps the seed"):
         _explicit(tmp_path, "ov2", [5.2], [5.0], [1.0], [0.0], t_end=1.0, tick=0.5,
                   **{"aggregate.sticking": True, "aggregate.seed_radius": 0.5})
+
+
+# ------------------------------------------------------------------ kinetic theory
+def test_gas_pressure_and_collision_rate_against_henderson_and_enskog(tmp_path: Path) -> None:
+    """eta = 0.3, 1000 disks: the collision-virial Z within 3 % of Henderson's
+    (1 + eta^2/8)/(1 - eta)^2 and the pair collision rate per disk within 3 % of Enskog's
+    2 n sigma g(sigma) sqrt(pi kT/m), g(sigma) = (Z - 1)/(2 eta). The tolerance is the
+    hard-wall layer (4 lx r / A = 4 %), not the statistics (0.2 %): bench/RESULTS.md s. 12."""
+    eta, n, r = 0.3, 1000, 0.5
+    lx = float(np.sqrt(n * np.pi * r**2 / eta))
+    out = _run(tmp_path, "z", **{"box.lx": lx, "box.ly": lx, "run.t_end": 60.0,
+                                 "run.tick": 0.5, "output.frame_every": 0,
+                                 "output.history_every": 5})
+    h = dla.history(out).iloc[3:]
+    z = h["P_virial"].to_numpy() * lx * lx / n
+    zh = float(dla.henderson_z(eta))
+    assert z.mean() == pytest.approx(zh, rel=0.03)
+    rate = 2 * (h["pair"].iloc[-1] - h["pair"].iloc[0]) / (n * (h["t"].iloc[-1] - h["t"].iloc[0]))
+    gamma = 2 * (n / lx**2) * 2 * r * (zh - 1) / (2 * eta) * np.sqrt(np.pi / (np.pi * r**2))
+    assert rate == pytest.approx(gamma, rel=0.03)
+
+
+def test_single_speed_relaxes_to_rayleigh(tmp_path: Path) -> None:
+    """The seed's start (every disk at |v| = sqrt(2 kT/m)) relaxes to the 2D Maxwell speed
+    distribution P(s) = s/s0^2 exp(-s^2/(2 s0^2)), s0^2 = kT/m: Kolmogorov-Smirnov distance of
+    the 1000 speeds after ~20 collisions per disk below 0.05 (1 % critical value 0.052); at
+    t = 0 it is 0.5 or more."""
+    out = _run(tmp_path, "ray", **{"disks.velocities": "fixed_speed", "run.t_end": 10.0,
+                                   "run.tick": 0.5, "output.frame_every": 20,
+                                   "output.history_every": 20})
+    fr = dla.frames(out)
+    m = float(fr["m"].iloc[0])
+
+    def ks(f: Any) -> float:
+        s = np.sort(np.hypot(f["vx"], f["vy"]).to_numpy())
+        cdf = 1 - np.exp(-s**2 * m / 2.0)
+        k = np.arange(1, len(s) + 1) / len(s)
+        return float(max(np.abs(k - cdf).max(), np.abs(k - 1 / len(s) - cdf).max()))
+
+    assert ks(dla.frame_at(fr, 0)) > 0.5
+    assert ks(dla.frame_at(fr)) < 0.05
+    assert dla.history(out)["pair"].iloc[-1] > 10 * 1000
