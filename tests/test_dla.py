@@ -327,3 +327,30 @@ def test_single_speed_relaxes_to_rayleigh(tmp_path: Path) -> None:
     assert ks(dla.frame_at(fr, 0)) > 0.5
     assert ks(dla.frame_at(fr)) < 0.05
     assert dla.history(out)["pair"].iloc[-1] > 10 * 1000
+
+
+def test_guard_reports_event_time_ids_and_overlap(tmp_path: Path) -> None:
+    """A tolerance below round-off (1e-300 of r_i + r_j) makes the contact guard fire in a
+    dense lattice: exit 3 (RunError), run.json 'failed: ...' naming the event number, time,
+    both disks and the overlap; no NaN anywhere."""
+    from pyorch import RunError
+
+    with pytest.raises(RunError, match=r"event-driven guard: overlap at contact at event \d+, "
+                                       r"t = .* tau, disks \d+ and \d+: overlap .* L"):
+        _run(tmp_path, "g", **{"box.lx": 40.2, "box.ly": 40.2, "disks.count": 1590,
+                               "disks.placement": "lattice", "run.t_end": 2.0,
+                               "run.tick": 0.05, "run.guard_tol": 1e-300,
+                               "output.frame_every": 0})
+    meta = json.loads((tmp_path / "g" / "run.json").read_text())
+    assert meta["status"].startswith("failed: event-driven guard")
+    assert "nan" not in (tmp_path / "g" / "history.dat").read_text().lower()
+
+
+def test_doors_byte_identical(tmp_path: Path) -> None:
+    over = {"box.lx": 30.0, "box.ly": 30.0, "disks.count": 100, "run.tick": 0.5,
+            "run.t_end": 200.0, "output.frame_every": 20, "output.log_events": True}
+    sc = Scene.read(GROW).with_overrides(over)
+    run(sc, tmp_path / "exe", progress=False)
+    run(sc, tmp_path / "f2py", door="f2py", progress=False)
+    for name in ("frames.dat", "history.dat", "aggregate.dat", "events.dat", "scene.nml"):
+        assert (tmp_path / "exe" / name).read_bytes() == (tmp_path / "f2py" / name).read_bytes()

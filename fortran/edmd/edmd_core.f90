@@ -765,8 +765,9 @@ contains
     integer, intent(in) :: i, j
     real(dp), intent(in) :: overlap
     character(len=400) :: buf
-    write(buf, '(a,a,a,i0,a,es24.16e3,a,i0,a,i0,a,es10.3,a,es10.3,a)') 'event-driven guard: ', &
-         what, ' at event ', s%n_events, ', t = ', s%t, ' tau, disks ', i, ' and ', j, &
+    write(buf, '(a,a,a,i0,a,es24.16e3,a,i0,a,i0,a,es10.3e3,a,es10.3e3,a)') &
+         'event-driven guard: ', what, ' at event ', s%n_events + 1, ', t = ', s%t, &
+         ' tau, disks ', i, ' and ', j, &
          ': overlap ', overlap, ' L (tolerance ', s%guard_tol, ' x (r_i + r_j))'
     call set_error(st, exit_numerical, trim(buf))
   end subroutine guard_fail
@@ -837,7 +838,7 @@ contains
       end do
     end do
     if (wi == 0) return
-    write(buf, '(a,i0,a,es24.16e3,a,i0,a,i0,a,es10.3,a)') 'event-driven guard: overlap after '// &
+    write(buf, '(a,i0,a,es24.16e3,a,i0,a,i0,a,es10.3e3,a)') 'event-driven guard: overlap after '// &
          'event ', s%n_events, ' at t = ', t, ' tau: disk ', wi, ' and ', wj, &
          ' (0 = wall) overlap by ', worst, ' L'
     call set_error(st, exit_numerical, trim(buf))

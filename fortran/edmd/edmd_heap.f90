@@ -12,7 +12,7 @@ module edmd_heap
   implicit none
   private
 
-  public :: heap_t, heap_init, heap_set, heap_remove, heap_top, heap_size, heap_check
+  public :: heap_t, heap_init, heap_set, heap_remove, heap_top
 
   type :: heap_t
     integer :: n = 0                       !< entries in the heap
@@ -86,25 +86,6 @@ contains
     heap_top = 0
     if (h%n > 0) heap_top = h%item(1)
   end function heap_top
-
-  pure integer function heap_size(h)
-    type(heap_t), intent(in) :: h
-    heap_size = h%n
-  end function heap_size
-
-  !> .true. if the heap property and the slot index hold (for tests).
-  logical function heap_check(h)
-    type(heap_t), intent(in) :: h
-    integer :: k
-    heap_check = .true.
-    do k = 1, h%n
-      if (h%slot(h%item(k)) /= k) heap_check = .false.
-      if (h%hkey(k) /= h%key(h%item(k))) heap_check = .false.
-      if (k > 1) then
-        if (before(h%hkey(k), h%item(k), h%hkey(k/2), h%item(k/2))) heap_check = .false.
-      end if
-    end do
-  end function heap_check
 
   subroutine sift_up(h, k0)
     type(heap_t), intent(inout) :: h
