@@ -62,6 +62,10 @@ module edmd_core
     real(dp), allocatable :: ev_t(:)
     integer, allocatable :: ev_kind(:), ev_partner(:)
     integer(i8), allocatable :: ev_count(:)
+    ! the best pair candidate of each free disk's last scan (kept across its cell crossings)
+    real(dp), allocatable :: pb_t(:)
+    integer, allocatable :: pb_j(:)
+    integer(i8), allocatable :: pb_count(:)
     ! cells
     integer :: ncx = 1, ncy = 1
     real(dp) :: wx = 1, wy = 1
@@ -143,7 +147,8 @@ contains
     s%m = m
     allocate(s%x(2, n), s%v(2, n), s%tl(n), s%state(n), s%coll(n), s%ev_t(n), s%ev_kind(n), &
          s%ev_partner(n), s%ev_count(n), s%cell(n), s%next(n), s%prev(n), s%parent(n), &
-         s%t_stick(n), s%ev_stuck(n), s%new_stuck(n))
+         s%t_stick(n), s%ev_stuck(n), s%new_stuck(n), s%pb_t(n), s%pb_j(n), s%pb_count(n))
+    s%pb_t = never; s%pb_j = 0; s%pb_count = 0
     s%x = 0; s%v = 0; s%tl = 0
     s%state = state_free
     s%coll = 0
@@ -463,30 +468,24 @@ contains
     end if
   end subroutine cross_time
 
-  !> Earliest event of free disk i over walls, its cell edges and the disks
-  !> of the 3 x 3 cells around it; into the calendar.
-  subroutine predict(s, i)
+  !> Best pair candidate of free disk i over the cells cx0..cx1 x cy0..cy1, into pb_*
+  !> (only if earlier than the one held).
+  subroutine scan_cells(s, i, cx0, cx1, cy0, cy1)
     type(ed_t), intent(inout) :: s
-    integer, intent(in) :: i
-    real(dp) :: tb, tc
-    integer :: kb, pb, w, cx, cy, ix, iy, j
-    call wall_time(s, i, tb, w)
-    kb = ev_wall; pb = w
-    call cross_time(s, i, tc, w)
-    if (earlier(tc, ev_cell, w, tb, kb, pb)) then
-      tb = tc; kb = ev_cell; pb = w
-    end if
-    cx = mod(s%cell(i), s%ncx)
-    cy = s%cell(i)/s%ncx
-    do iy = max(0, cy - 1), min(s%ncy - 1, cy + 1)
-      do ix = max(0, cx - 1), min(s%ncx - 1, cx + 1)
+    integer, intent(in) :: i, cx0, cx1, cy0, cy1
+    integer :: ix, iy, j
+    real(dp) :: tc
+    do iy = max(0, cy0), min(s%ncy - 1, cy1)
+      do ix = max(0, cx0), min(s%ncx - 1, cx1)
         j = s%head(ix + s%ncx*iy)
         do while (j /= 0)
           if (j /= i) then
             tc = pair_time(s, i, j)
             if (tc < never) then
-              if (earlier(tc, ev_pair, j, tb, kb, pb)) then
-                tb = tc; kb = ev_pair; pb = j
+              if (earlier(tc, ev_pair, j, s%pb_t(i), ev_pair, s%pb_j(i))) then
+                s%pb_t(i) = tc
+                s%pb_j(i) = j
+                s%pb_count(i) = s%coll(j)
               end if
             end if
           end if
@@ -494,8 +493,67 @@ contains
         end do
       end do
     end do
-    call set_event(s, i, tb, kb, pb)
+  end subroutine scan_cells
+
+  !> Earliest event of free disk i over walls, its cell edges and the disks
+  !> of the 3 x 3 cells around it; into the calendar.
+  subroutine predict(s, i)
+    type(ed_t), intent(inout) :: s
+    integer, intent(in) :: i
+    integer :: cx, cy
+    s%pb_t(i) = never
+    s%pb_j(i) = 0
+    cx = mod(s%cell(i), s%ncx)
+    cy = s%cell(i)/s%ncx
+    call scan_cells(s, i, cx - 1, cx + 1, cy - 1, cy + 1)
+    call choose(s, i)
   end subroutine predict
+
+  !> After disk i crossed into a new cell in direction d: its best pair candidate still holds
+  !> if the partner has not changed since (the old 3 x 3 cells were scanned with the same
+  !> trajectories), so only the row or column of cells that became adjacent is scanned.
+  !> Otherwise a full prediction. The same events result (tests: heap = rescan), at a third of
+  !> the cell scans per crossing.
+  subroutine predict_after_cross(s, i, d)
+    type(ed_t), intent(inout) :: s
+    integer, intent(in) :: i, d
+    integer :: cx, cy
+    if (s%pb_j(i) /= 0) then
+      if (s%coll(s%pb_j(i)) /= s%pb_count(i)) then
+        call predict(s, i)
+        return
+      end if
+    end if
+    cx = mod(s%cell(i), s%ncx)
+    cy = s%cell(i)/s%ncx
+    select case (d)
+    case (1); call scan_cells(s, i, cx - 1, cx - 1, cy - 1, cy + 1)
+    case (2); call scan_cells(s, i, cx + 1, cx + 1, cy - 1, cy + 1)
+    case (3); call scan_cells(s, i, cx - 1, cx + 1, cy - 1, cy - 1)
+    case (4); call scan_cells(s, i, cx - 1, cx + 1, cy + 1, cy + 1)
+    end select
+    call choose(s, i)
+  end subroutine predict_after_cross
+
+  !> The calendar entry of disk i: the earliest of its wall, cell crossing and best pair.
+  subroutine choose(s, i)
+    type(ed_t), intent(inout) :: s
+    integer, intent(in) :: i
+    real(dp) :: tb, tc
+    integer :: kb, pb, w
+    call wall_time(s, i, tb, w)
+    kb = ev_wall; pb = w
+    call cross_time(s, i, tc, w)
+    if (earlier(tc, ev_cell, w, tb, kb, pb)) then
+      tb = tc; kb = ev_cell; pb = w
+    end if
+    if (s%pb_j(i) /= 0) then
+      if (earlier(s%pb_t(i), ev_pair, s%pb_j(i), tb, kb, pb)) then
+        tb = s%pb_t(i); kb = ev_pair; pb = s%pb_j(i)
+      end if
+    end if
+    call set_event(s, i, tb, kb, pb)
+  end subroutine choose
 
   subroutine set_event(s, i, t, k, p)
     type(ed_t), intent(inout) :: s
@@ -589,7 +647,7 @@ contains
       case (ev_cell)
         call cross(s, i, p)
         s%n_cross = s%n_cross + 1
-        call predict(s, i)
+        call predict_after_cross(s, i, p)
         cycle
       case (ev_wall)
         s%t = te
@@ -729,8 +787,14 @@ contains
           if (s%state(k) == state_free) then
             tc = pair_time(s, k, i)
             if (tc < never) then
-              if (earlier(tc, ev_pair, i, s%ev_t(k), s%ev_kind(k), s%ev_partner(k))) &
-                   call set_event(s, k, tc, ev_pair, i)
+              ! against k's best pair (kept across its crossings), not only its entry
+              if (earlier(tc, ev_pair, i, s%pb_t(k), ev_pair, s%pb_j(k))) then
+                s%pb_t(k) = tc
+                s%pb_j(k) = i
+                s%pb_count(k) = s%coll(i)
+                if (earlier(tc, ev_pair, i, s%ev_t(k), s%ev_kind(k), s%ev_partner(k))) &
+                     call set_event(s, k, tc, ev_pair, i)
+              end if
             end if
           end if
           k = s%next(k)
