@@ -12,8 +12,9 @@
 !> stable form dt = c / (-b + sqrt(b^2 - a c)), b = dr.dv < 0, c = |dr|^2 -
 !> sigma^2; c <= 0 while approaching = in contact now, dt = 0), disk-wall
 !> collision, and cell crossing (the box is cut into cells of side >= the
-!> largest diameter; a disk only looks at the 3 x 3 cells around its own,
-!> and re-predicts when it enters a new cell).
+!> largest diameter; a disk only looks at the 3 x 3 cells around its own;
+!> it keeps its best pair candidate across crossings and scans only the 3
+!> cells that became adjacent, unless that candidate's partner changed).
 !>
 !> Calendar ('heap'): one entry per free disk (its earliest event) in an
 !> indexed binary heap (edmd_heap); an entry naming a partner whose collision
