@@ -40,6 +40,10 @@ KINDS: dict[str, Kind] = {
         "oscillator", "oscillator", ("scene", "oscillator", "output"),
         "length L and time tau of the user's choice (omega in rad/tau), unit mass",
         "pyorch.oscillator", "independent damped harmonic oscillators (validation kind)"),
+    "dla": Kind(
+        "dla", "edmd", ("scene", "box", "disks", "aggregate", "run", "output"),
+        "length L (box unit), mass M, energy E (kT), time tau = L sqrt(M/E)",
+        "pyorch.dla", "event-driven hard disks aggregating on a seed (seed 004)"),
 }
 
 _KIND_RE = re.compile(r"""^\s*kind\s*=\s*['"]([^'"]*)['"]""", re.I | re.M)

@@ -1,0 +1,268 @@
+"""Kind ``dla``: event-driven hard disks in a closed box aggregating on a static seed (seed 004).
+
+Units: length L (the box unit; radii in L), mass M, energy E (kT in E), time
+tau = L sqrt(M/E). Masses m = density pi r^2 (``mass_rule = 'area'``, the default) or the
+seed's m = density pi r (``'perimeter'``).
+
+Files of a run directory:
+
+- ``frames.dat``: tick, t [tau], id, x, y [L], vx, vy [L/tau], r [L], m [M], state
+  (0 free, 1 stuck, 2 seed), positions interpolated exactly between events;
+- ``history.dat``: cumulative event counts (events, pair, wall, stick, bounce, cross), free
+  disks, E_kin [E], momentum of the free disks, P_virial and P_wall [E/L^2] over the interval
+  since the previous row;
+- ``aggregate.dat``: member (0 = seed), id, x, y, r, t_stick, event, parent (a tree);
+- ``events.dat`` (``log_events``): event, t, type (1 pair, 2 wall, 4 stick, 5 bounce), i, j.
+
+Analysis: the fractal dimension of the aggregate by R_g over the growth history and by
+mass-radius counting from the seed (:mod:`pyorch.dla.fractal`, validated on known shapes).
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from numpy.typing import NDArray
+
+from pyorch import io
+from pyorch.dla import fractal
+from pyorch.dla.fractal import Fit
+
+__all__ = ["frames", "history", "aggregate", "events", "frame_at", "mean_free_path",
+           "henderson_z", "dimensions", "save_run_plots", "save_growth_movie",
+           "write_tables", "METRIC_KEYS", "default_metrics", "fractal"]
+
+
+def frames(run_dir: str | Path) -> pd.DataFrame:
+    """``frames.dat`` (units in ``attrs["units"]``)."""
+    return io.read_dat(Path(run_dir) / "frames.dat")
+
+
+def history(run_dir: str | Path) -> pd.DataFrame:
+    """``history.dat``."""
+    return io.read_dat(Path(run_dir) / "history.dat")
+
+
+def aggregate(run_dir: str | Path) -> pd.DataFrame:
+    """``aggregate.dat``: members in sticking order, member 0 the seed."""
+    df = io.read_dat(Path(run_dir) / "aggregate.dat")
+    for c in ("member", "event", "parent"):
+        df[c] = df[c].astype(np.int64)
+    return df
+
+
+def events(run_dir: str | Path) -> pd.DataFrame:
+    """``events.dat`` (the event log of small systems)."""
+    df = io.read_dat(Path(run_dir) / "events.dat")
+    for c in ("event", "type", "i", "j"):
+        df[c] = df[c].astype(np.int64)
+    return df
+
+
+def frame_at(fr: pd.DataFrame, tick: int | None = None) -> pd.DataFrame:
+    """Rows of one frame (the last one by default)."""
+    t = int(fr["tick"].max()) if tick is None else tick
+    return fr[fr["tick"] == t]
+
+
+def mean_free_path(n_disks: float, area: float, radius: float) -> float:
+    """Mean free path [L] of a dilute 2D gas of disks: 1 / (sqrt(2) n 2r), n = N/area."""
+    return float(area / (np.sqrt(2.0) * n_disks * 2.0 * radius))
+
+
+def henderson_z(eta: float | NDArray[np.float64]) -> NDArray[np.float64]:
+    """Compressibility factor P A / (N kT) of hard disks (Henderson 1975):
+    Z = (1 + eta^2/8) / (1 - eta)^2, eta the packing fraction."""
+    e = np.asarray(eta, dtype=float)
+    return (1.0 + e**2 / 8.0) / (1.0 - e) ** 2
+
+
+def dimensions(run_dir: str | Path, n_min: int = 30, r_min_diameters: float = 3.0,
+               r_max_fraction: float = 0.5) -> dict[str, Fit]:
+    """Fractal dimension of the aggregate of a run: R_g growth (members n >= n_min), mass-radius
+    from the seed over [r_min_diameters * 2 r, r_max_fraction * R_max], and box counting over
+    [2 diameters, R_max / 4] (reads low at small sizes: see bench/RESULTS.md)."""
+    ag = aggregate(run_dir)
+    p = ag[["x", "y"]].to_numpy()
+    d0 = 2.0 * float(ag["r"].iloc[1:].mean()) if len(ag) > 1 else 1.0
+    rmax = float(np.hypot(*(p - p[0]).T).max())
+    return {
+        "rg": fractal.dimension_rg(p, n_min=n_min),
+        "mass_radius": fractal.mass_radius(p, p[0], r_min_diameters * d0, r_max_fraction * rmax),
+        "box": fractal.box_counting(p, 2.0 * d0, rmax / 4.0),
+    }
+
+
+def _circles(ax, x, y, r, colors, **kw):  # type: ignore[no-untyped-def]
+    from matplotlib.collections import EllipseCollection
+
+    ec = EllipseCollection(2 * r, 2 * r, np.zeros_like(r), units="xy", offsets=np.column_stack([x, y]),
+                           offset_transform=ax.transData, **kw)
+    if colors is not None:
+        ec.set_array(np.asarray(colors))
+    ax.add_collection(ec)
+    return ec
+
+
+def save_run_plots(run_dir: str | Path, out: str | Path | None = None,
+                   full: bool = False) -> list[Path]:
+    """``plots/aggregate.png`` (members coloured by sticking time, last frame's gas in grey),
+    ``plots/dimension.png`` (R_g(n) and M(r) with their fits), ``plots/history.png``;
+    ``full`` adds ``plots/growth.gif`` (the frames as a movie)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    run_dir = Path(run_dir)
+    out = Path(out) if out is not None else run_dir / "plots"
+    out.mkdir(parents=True, exist_ok=True)
+    written: list[Path] = []
+    sc_text = (run_dir / "scene.nml").read_text()
+    lx = _scene_value(sc_text, "lx")
+    ly = _scene_value(sc_text, "ly")
+    has_agg = (run_dir / "aggregate.dat").is_file()
+    fig, ax = plt.subplots(figsize=(6, 6))
+    if (run_dir / "frames.dat").is_file():
+        last = frame_at(frames(run_dir))
+        gas = last[last["state"] == 0]
+        _circles(ax, gas["x"].to_numpy(), gas["y"].to_numpy(), gas["r"].to_numpy(), None,
+                 facecolors="0.8", edgecolors="0.6", linewidths=0.3)
+    if has_agg:
+        ag = aggregate(run_dir)
+        ec = _circles(ax, ag["x"].to_numpy(), ag["y"].to_numpy(), ag["r"].to_numpy(),
+                      ag["t_stick"].to_numpy(), cmap="viridis", linewidths=0)
+        fig.colorbar(ec, ax=ax, shrink=0.8, label=r"sticking time [$\tau$]")
+    ax.set_xlim(0, lx)
+    ax.set_ylim(0, ly)
+    ax.set_aspect("equal")
+    ax.set_xlabel(r"$x$ [$L$]")
+    ax.set_ylabel(r"$y$ [$L$]")
+    fig.tight_layout()
+    fig.savefig(out / "aggregate.png", dpi=120)
+    plt.close(fig)
+    written.append(out / "aggregate.png")
+    if has_agg and len(aggregate(run_dir)) > 60:
+        ag = aggregate(run_dir)
+        p = ag[["x", "y"]].to_numpy()
+        dims = dimensions(run_dir)
+        n, rg = fractal.radius_of_gyration_growth(p)
+        fig, (a1, a2) = plt.subplots(1, 2, figsize=(9, 3.8))
+        a1.loglog(n[1:], rg[1:], lw=1)
+        f = dims["rg"]
+        sel = n >= f.lo
+        a1.loglog(n[sel], rg[sel][-1] * (n[sel] / n[sel][-1]) ** (1 / f.d), "k--",
+                  label=f"$D = {f.d:.3f} \\pm {f.err:.3f}$")
+        a1.set_xlabel("members $n$")
+        a1.set_ylabel(r"$R_g$ [$L$]")
+        a1.legend(frameon=False)
+        d = np.sort(np.hypot(*(p - p[0]).T))
+        f = dims["mass_radius"]
+        a2.loglog(d[1:], np.arange(2, len(d) + 1), lw=1)
+        rr = np.geomspace(f.lo, f.hi, 10)
+        m0 = np.searchsorted(d, f.hi, side="right")
+        a2.loglog(rr, m0 * (rr / f.hi) ** f.d, "k--", label=f"$D = {f.d:.3f} \\pm {f.err:.3f}$")
+        a2.set_xlabel(r"$r$ from the seed [$L$]")
+        a2.set_ylabel("$M(r)$")
+        a2.legend(frameon=False)
+        fig.tight_layout()
+        fig.savefig(out / "dimension.png", dpi=120)
+        plt.close(fig)
+        written.append(out / "dimension.png")
+    if (run_dir / "history.dat").is_file():
+        h = history(run_dir)
+        fig, (a1, a2) = plt.subplots(1, 2, figsize=(9, 3.5))
+        a1.plot(h["t"], h["free"], lw=1)
+        a1.set_xlabel(r"$t$ [$\tau$]")
+        a1.set_ylabel("free disks")
+        a2.plot(h["t"], h["E_kin"], lw=1)
+        a2.set_xlabel(r"$t$ [$\tau$]")
+        a2.set_ylabel(r"$E_{kin}$ [$E$]")
+        fig.tight_layout()
+        fig.savefig(out / "history.png", dpi=110)
+        plt.close(fig)
+        written.append(out / "history.png")
+    if full and (run_dir / "frames.dat").is_file():
+        written.append(save_growth_movie(run_dir, out / "growth.gif"))
+    return written
+
+
+def write_tables(run_dir: str | Path, out: str | Path | None = None) -> list[Path]:
+    """``analysis/dimension.csv``: D by each estimator with its fit error and range."""
+    run_dir = Path(run_dir)
+    out = Path(out) if out is not None else run_dir / "analysis"
+    out.mkdir(parents=True, exist_ok=True)
+    if not (run_dir / "aggregate.dat").is_file() or len(aggregate(run_dir)) <= 60:
+        return []
+    rows = [{"estimator": k, "D": f.d, "fit_err": f.err, "range_lo": f.lo, "range_hi": f.hi,
+             "points": f.n_points} for k, f in dimensions(run_dir).items()]
+    path = out / "dimension.csv"
+    pd.DataFrame(rows).to_csv(path, index=False)
+    return [path]
+
+
+def save_growth_movie(run_dir: str | Path, out: str | Path, fps: int = 10) -> Path:
+    """Animated GIF of the frames (gas grey, members coloured by sticking time; Pillow)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.animation import FuncAnimation, PillowWriter
+
+    run_dir = Path(run_dir)
+    fr = frames(run_dir)
+    ticks = np.unique(fr["tick"].to_numpy())
+    sc_text = (run_dir / "scene.nml").read_text()
+    lx, ly = _scene_value(sc_text, "lx"), _scene_value(sc_text, "ly")
+    fig, ax = plt.subplots(figsize=(5, 5))
+
+    def draw(k: int) -> None:
+        ax.clear()
+        f = fr[fr["tick"] == ticks[k]]
+        col = np.where(f["state"].to_numpy() == 0, "0.7", "C3")
+        ax.scatter(f["x"], f["y"], s=4, c=col, linewidths=0)
+        ax.set_xlim(0, lx)
+        ax.set_ylim(0, ly)
+        ax.set_aspect("equal")
+        ax.set_title(f"t = {f['t'].iloc[0]:.2f} tau")
+
+    anim = FuncAnimation(fig, draw, frames=len(ticks))
+    out = Path(out)
+    anim.save(out, writer=PillowWriter(fps=fps))
+    plt.close(fig)
+    return out
+
+
+def _scene_value(text: str, key: str) -> float:
+    import re
+
+    m = re.search(rf"^\s*{key}\s*=\s*([^\s!]+)", text, re.M)
+    if m is None:
+        raise ValueError(f"scene.nml: no key {key}")
+    return float(m.group(1).replace("d", "e").replace("D", "e"))
+
+
+#: columns of :func:`default_metrics`
+METRIC_KEYS = ("members", "D_rg", "D_rg_err", "D_mass_radius", "D_mass_radius_err",
+               "free_final", "E_kin_final")
+
+
+def default_metrics(run: object) -> dict[str, float]:
+    """Sweep results of one run (a :class:`pyorch.run.Run` or a run directory): members,
+    D by R_g and by mass-radius (with fit errors), free disks and E_kin [E] at the end."""
+    run_dir = Path(getattr(run, "dir", run))  # type: ignore[arg-type]
+    out: dict[str, float] = {k: float("nan") for k in METRIC_KEYS}
+    if (Path(run_dir) / "aggregate.dat").is_file():
+        ag = aggregate(run_dir)
+        out["members"] = float(len(ag))
+        if len(ag) > 60:
+            dims = dimensions(run_dir)
+            out.update({"D_rg": dims["rg"].d, "D_rg_err": dims["rg"].err,
+                        "D_mass_radius": dims["mass_radius"].d,
+                        "D_mass_radius_err": dims["mass_radius"].err})
+    if (Path(run_dir) / "history.dat").is_file():
+        h = history(run_dir)
+        out["free_final"] = float(h["free"].iloc[-1])
+        out["E_kin_final"] = float(h["E_kin"].iloc[-1])
+    return out
