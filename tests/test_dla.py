@@ -268,7 +268,7 @@ def test_pause_and_resume_bit_identical(tmp_path: Path) -> None:
     ("aggregate.seed_radius", 0.0, "&aggregate seed_radius "),
     ("disks.mass_rule", "volume", "&disks mass_rule "),
     ("run.tick", 0.0, "&run tick "),
-    ("box.lx", float("inf"), "&box lx "),
+    ("box.lx", 1.0e300, "&box lx "),
 ])
 def test_bad_input_names_key(tmp_path: Path, key: str, value: object, needle: str) -> None:
     sc = Scene.read(GROW).with_overrides({key: value})
@@ -276,6 +276,11 @@ def test_bad_input_names_key(tmp_path: Path, key: str, value: object, needle: st
     with pytest.raises(SceneError, match=needle.replace("(", r"\(").replace(")", r"\)")):
         run(sc, out, progress=False)
     assert not out.exists()
+
+
+def test_non_finite_override_refused_naming_the_key() -> None:
+    with pytest.raises(SceneError, match="box.lx"):
+        Scene.read(GROW).with_overrides({"box.lx": float("inf")})
 
 
 def test_explicit_overlap_refused(tmp_path: Path) -> None:

@@ -74,7 +74,7 @@ module edmd_dla
     real(dp) :: seconds = 0                           !< CPU time in the event loop [s] (not state)
     type(table_t) :: frames, history, aggregate, events
   contains
-    procedure :: load, scene_text, open_outputs, advance, finish, close_outputs, output_files
+    procedure :: load, read => read_file, scene_text, open_outputs, advance, finish, close_outputs, output_files
     procedure :: save_state, restore_state, counters, progress_text, json_fields
   end type dla_t
 
@@ -83,7 +83,23 @@ module edmd_dla
 
 contains
 
+  !> Read (read_file), validate, build the initial state.
   subroutine load(self, path, st)
+    class(dla_t), intent(inout) :: self
+    character(len=*), intent(in) :: path
+    type(status_t), intent(inout) :: st
+    call self%read(path, st)
+    if (st%code /= 0) return
+    if (self%seed_x < 0) self%seed_x = 0.5_dp*self%lx   ! < 0: the box centre
+    if (self%seed_y < 0) self%seed_y = 0.5_dp*self%ly
+    call validate(self, path, st)
+    if (st%code /= 0) return
+    self%n_ticks = nint(self%t_end/self%tick, i8)
+    call initial_state(self, st)
+  end subroutine load
+
+  !> The scene file's groups (absent groups keep their defaults; no range checks).
+  subroutine read_file(self, path, st)
     class(dla_t), intent(inout) :: self
     character(len=*), intent(in) :: path
     type(status_t), intent(inout) :: st
@@ -122,15 +138,15 @@ contains
       return
     end if
     read(u, nml=scene, iostat=ios, iomsg=iom)
-    call group('scene', .true.)
+    call group('scene', .false.)
     rewind(u); read(u, nml=box, iostat=ios, iomsg=iom)
-    call group('box', .true.)
+    call group('box', .false.)
     rewind(u); read(u, nml=disks, iostat=ios, iomsg=iom)
-    call group('disks', .true.)
+    call group('disks', .false.)
     rewind(u); read(u, nml=aggregate, iostat=ios, iomsg=iom)
     call group('aggregate', .false.)
     rewind(u); read(u, nml=run, iostat=ios, iomsg=iom)
-    call group('run', .true.)
+    call group('run', .false.)
     rewind(u); read(u, nml=output, iostat=ios, iomsg=iom)
     call group('output', .false.)
     close(u)
@@ -146,12 +162,6 @@ contains
     self%frame_every = frame_every; self%history_every = history_every
     self%check_every = check_every; self%checkpoint_every = checkpoint_every
     self%log_events = log_events
-    if (self%seed_x < 0) self%seed_x = 0.5_dp*self%lx
-    if (self%seed_y < 0) self%seed_y = 0.5_dp*self%ly
-    call validate(self, path, st)
-    if (st%code /= 0) return
-    self%n_ticks = nint(self%t_end/self%tick, i8)
-    call initial_state(self, st)
   contains
     subroutine group(name, required)
       character(len=*), intent(in) :: name
@@ -163,7 +173,7 @@ contains
         call set_error(st, exit_bad_input, trim(path)//': missing group &'//name)
       end if
     end subroutine group
-  end subroutine load
+  end subroutine read_file
 
   subroutine validate(self, path, st)
     class(dla_t), intent(in) :: self
@@ -361,15 +371,13 @@ contains
     call put_real(text, 'kt', self%kt, 'E')
     call put_str(text, 'velocities', self%velocities, '')
     call put_str(text, 'placement', self%placement, '')
-    if (self%placement == 'explicit') then
-      do k = 1, max_explicit
-        write(ks, '(a,i0,a)') '(', k, ')'
-        call put_real(text, 'x0'//trim(ks), self%x0(k), 'L')
-        call put_real(text, 'y0'//trim(ks), self%y0(k), 'L')
-        call put_real(text, 'vx0'//trim(ks), self%vx0(k), 'L/tau')
-        call put_real(text, 'vy0'//trim(ks), self%vy0(k), 'L/tau')
-      end do
-    end if
+    do k = 1, max_explicit      ! every key, also when placement is not 'explicit'
+      write(ks, '(a,i0,a)') '(', k, ')'
+      call put_real(text, 'x0'//trim(ks), self%x0(k), 'L (placement = explicit)')
+      call put_real(text, 'y0'//trim(ks), self%y0(k), 'L')
+      call put_real(text, 'vx0'//trim(ks), self%vx0(k), 'L/tau')
+      call put_real(text, 'vy0'//trim(ks), self%vy0(k), 'L/tau')
+    end do
     call put_int(text, 'seed', self%seed, 'RNG of the initial state')
     text = text//'/'//achar(10)
     text = text//'&aggregate'//achar(10)
