@@ -1,0 +1,203 @@
+!> Mean-field potentials of the seed's four tests and the transport step.
+!>
+!> Transport (slides, "DSMC: transport"): characteristics d theta/dt = omega,
+!> d omega/dt = V(theta, omega), by the first-order semi-implicit Euler
+!>   omega^{n+1} = omega^n + dt (F(theta^n) - beta omega^{n+1}),
+!>   theta^{n+1} = theta^n + dt omega^{n+1},
+!> with F = -(1/I) dW/dtheta the torque per inertia [1/tau^2] (the slides'
+!> V with m = I = 1) and the damping beta implicit.
+!>
+!> Potentials, one routine each (which form the slides' potentials take):
+!> * 'none': F = 0 (Test 1, free rotation between collisions).
+!> * 'quadratic': W = (alpha/2)(theta - theta_hat)^2 + beta (damping): the
+!>   slides' W = (alpha/2)|nu - nu_hat|^2 + beta nu.zeta with the order
+!>   parameter nu taken as the angle itself, so that the characteristics are
+!>   the slide's linear ODE d/dt [theta, omega] = [[0, 1], [-alpha, -beta]]
+!>   [theta, omega] + [0, alpha theta_hat]: fixed point (theta_hat, 0),
+!>   eigenvalues (-beta +- sqrt(beta^2 - 4 alpha))/2 (Test 2). theta is not
+!>   wrapped. With collisions at temperature T and beta = 0 the equilibrium
+!>   is theta ~ Gaussian(theta_hat, T/alpha) (with beta > 0 it cools to 0).
+!> * 'dipole': W = alpha sin(theta - theta_hat), F = -(alpha/I) cos(theta -
+!>   theta_hat) (Test 3, a dipole in a field). The well is a cosine well with
+!>   its minimum at theta_hat - pi/2: the equilibrium in theta is von Mises,
+!>   f ~ exp(kappa cos(theta - theta_hat + pi/2)), kappa = alpha/T.
+!> * 'onsager': W(theta_1, theta_2) = alpha L^2 |sin(theta_1 - theta_2)|
+!>   (Test 4, slides: alpha = 1), mean field
+!>   U(theta) = alpha L^2 <|sin(theta - theta_j)|>_j, F = -(1/I) dU/dtheta
+!>   (the slide writes V = +L^2 int d|sin| f: a force is minus the gradient;
+!>   with the minus sign the potential aligns, as Onsager's excluded volume
+!>   does). Two forms:
+!>   - 'exact': the O(N^2) pair sum (the reference);
+!>   - 'fourier': |sin x| = 2/pi - (4/pi) sum_{k>=1} cos(2kx)/(4k^2 - 1)
+!>     truncated at k = K, so U = alpha L^2 sum_k a_k (C_k cos 2k theta +
+!>     S_k sin 2k theta), C_k, S_k = <cos 2k theta_j>, <sin 2k theta_j>:
+!>     O(N K). Its force coefficients fall as 1/k (the kink of |sin|), the
+!>     truncation error is measured in bench/rods_onsager.py.
+!>   Linear stability of the isotropic state: with f = (1 + eps cos 2theta)/(2pi)
+!>   the field is U = const - eps (2 alpha L^2/(3 pi)) cos 2theta, and
+!>   f ~ exp(-U/T) feeds back eps (2 alpha L^2/(3 pi T)): the isotropic state
+!>   is unstable for alpha L^2 / T > 3 pi / 2.
+!> The interaction energy per sample [m L^2/tau^2]: <W(theta_i)> for the
+!> one-body wells, (1/2) <U(theta_i)> for Onsager (pairs counted once).
+module dsmc_mean_field
+  use kinds, only: dp, i8, pi
+  implicit none
+  private
+
+  public :: field_t, transport, interaction_energy, onsager_modes, onsager_coefficient
+
+  type :: field_t
+    character(len=16) :: potential = 'none'   !< none | quadratic | dipole | onsager
+    character(len=16) :: force = 'fourier'    !< Onsager: exact | fourier
+    real(dp) :: alpha = 0.0_dp                !< strength [m L^2/tau^2]
+    real(dp) :: beta = 0.0_dp                 !< damping of 'quadratic' [1/tau]
+    real(dp) :: theta_hat = 0.0_dp            !< alignment direction [rad]
+    real(dp) :: inertia = 1.0_dp              !< I [m L^2]
+    real(dp) :: length = 1.0_dp               !< L [L]
+    integer :: modes = 16                     !< Fourier modes K of 'fourier'
+  end type field_t
+
+contains
+
+  !> a_k of |sin x| = sum_{k>=0} a_k cos(2 k x): a_0 = 2/pi, a_k = -4/(pi (4k^2 - 1)).
+  pure function onsager_coefficient(k) result(a)
+    integer, intent(in) :: k
+    real(dp) :: a
+    a = -4.0_dp/(pi*real(4*k*k - 1, dp))
+  end function onsager_coefficient
+
+  !> C_k = <cos 2k theta>, S_k = <sin 2k theta>, k = 1..K (complex powers of e^{2i theta}).
+  subroutine onsager_modes(theta, kmax, ck, sk)
+    real(dp), intent(in) :: theta(:)
+    integer, intent(in) :: kmax
+    real(dp), intent(out) :: ck(kmax), sk(kmax)
+    integer(i8) :: i
+    integer :: k
+    complex(dp) :: z, zk
+    ck = 0.0_dp
+    sk = 0.0_dp
+    do i = 1, size(theta, kind=i8)
+      z = cmplx(cos(2.0_dp*theta(i)), sin(2.0_dp*theta(i)), dp)
+      zk = z
+      do k = 1, kmax
+        ck(k) = ck(k) + real(zk, dp)
+        sk(k) = sk(k) + aimag(zk)
+        zk = zk*z
+      end do
+    end do
+    ck = ck/real(size(theta), dp)
+    sk = sk/real(size(theta), dp)
+  end subroutine onsager_modes
+
+  !> One transport step of all samples (semi-implicit Euler, header).
+  subroutine transport(f, dt, theta, omega)
+    type(field_t), intent(in) :: f
+    real(dp), intent(in) :: dt
+    real(dp), intent(inout) :: theta(:), omega(:)
+    select case (trim(f%potential))
+    case ('none')
+      theta = theta + dt*omega
+    case ('quadratic')
+      omega = (omega - dt*(f%alpha/f%inertia)*(theta - f%theta_hat))/(1.0_dp + dt*f%beta)
+      theta = theta + dt*omega
+    case ('dipole')
+      omega = omega - dt*(f%alpha/f%inertia)*cos(theta - f%theta_hat)
+      theta = theta + dt*omega
+    case ('onsager')
+      if (trim(f%force) == 'exact') then
+        call kick_onsager_exact(f, dt, theta, omega)
+      else
+        call kick_onsager_fourier(f, dt, theta, omega)
+      end if
+      theta = theta + dt*omega
+    end select
+  end subroutine transport
+
+  !> omega += dt F, F_i = -(alpha L^2/I) (1/N) sum_j sign(sin(th_i - th_j)) cos(th_i - th_j).
+  subroutine kick_onsager_exact(f, dt, theta, omega)
+    type(field_t), intent(in) :: f
+    real(dp), intent(in) :: dt
+    real(dp), intent(in) :: theta(:)
+    real(dp), intent(inout) :: omega(:)
+    real(dp) :: c(size(theta)), s(size(theta))
+    real(dp) :: acc, sn, cs, g
+    integer(i8) :: i, j, n
+    n = size(theta, kind=i8)
+    c = cos(theta)
+    s = sin(theta)
+    g = dt*f%alpha*f%length**2/(f%inertia*real(n, dp))
+    do i = 1, n
+      acc = 0.0_dp
+      do j = 1, n
+        sn = s(i)*c(j) - c(i)*s(j)     ! sin(th_i - th_j)
+        cs = c(i)*c(j) + s(i)*s(j)     ! cos(th_i - th_j)
+        acc = acc + sign(1.0_dp, sn)*cs*merge(0.0_dp, 1.0_dp, sn == 0.0_dp)
+      end do
+      omega(i) = omega(i) - g*acc
+    end do
+  end subroutine kick_onsager_exact
+
+  !> omega += dt F with U truncated at K modes: F = -(alpha L^2/I) sum_k a_k 2k (S_k cos 2k th - C_k sin 2k th).
+  subroutine kick_onsager_fourier(f, dt, theta, omega)
+    type(field_t), intent(in) :: f
+    real(dp), intent(in) :: dt
+    real(dp), intent(in) :: theta(:)
+    real(dp), intent(inout) :: omega(:)
+    real(dp) :: ck(f%modes), sk(f%modes), acc, g
+    complex(dp) :: z, zk, bk(f%modes)
+    integer(i8) :: i
+    integer :: k
+    call onsager_modes(theta, f%modes, ck, sk)
+    do k = 1, f%modes
+      ! a_k 2k (S_k cos - C_k sin) = Re(b_k z^k) with b_k = a_k 2k (S_k + i C_k)
+      bk(k) = onsager_coefficient(k)*real(2*k, dp)*cmplx(sk(k), ck(k), dp)
+    end do
+    g = dt*f%alpha*f%length**2/f%inertia
+    do i = 1, size(theta, kind=i8)
+      z = cmplx(cos(2.0_dp*theta(i)), sin(2.0_dp*theta(i)), dp)
+      zk = z
+      acc = 0.0_dp
+      do k = 1, f%modes
+        acc = acc + real(bk(k)*zk, dp)
+        zk = zk*z
+      end do
+      omega(i) = omega(i) - g*acc
+    end do
+  end subroutine kick_onsager_fourier
+
+  !> Interaction energy per sample [m L^2/tau^2] of the same form as the force.
+  function interaction_energy(f, theta) result(e)
+    type(field_t), intent(in) :: f
+    real(dp), intent(in) :: theta(:)
+    real(dp) :: e
+    real(dp), allocatable :: ck(:), sk(:)
+    integer(i8) :: i, j, n
+    integer :: k
+    n = size(theta, kind=i8)
+    e = 0.0_dp
+    select case (trim(f%potential))
+    case ('quadratic')
+      e = 0.5_dp*f%alpha*sum((theta - f%theta_hat)**2)/real(n, dp)
+    case ('dipole')
+      e = f%alpha*sum(sin(theta - f%theta_hat))/real(n, dp)
+    case ('onsager')
+      if (trim(f%force) == 'exact') then
+        do i = 1, n
+          do j = 1, n
+            e = e + abs(sin(theta(i) - theta(j)))
+          end do
+        end do
+        e = e/real(n, dp)**2
+      else
+        allocate(ck(f%modes), sk(f%modes))
+        call onsager_modes(theta, f%modes, ck, sk)
+        e = 2.0_dp/pi
+        do k = 1, f%modes
+          e = e + onsager_coefficient(k)*(ck(k)**2 + sk(k)**2)
+        end do
+      end if
+      e = 0.5_dp*f%alpha*f%length**2*e
+    end select
+  end function interaction_energy
+
+end module dsmc_mean_field
