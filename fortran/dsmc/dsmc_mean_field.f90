@@ -46,6 +46,8 @@ module dsmc_mean_field
 
   public :: field_t, transport, interaction_energy, onsager_modes, onsager_coefficient
 
+  integer, parameter :: chunk = 256   !< samples per vectorised block of the Fourier form
+
   type :: field_t
     character(len=16) :: potential = 'none'   !< none | quadratic | dipole | onsager
     character(len=16) :: force = 'fourier'    !< Onsager: exact | fourier
@@ -66,28 +68,47 @@ contains
     a = -4.0_dp/(pi*real(4*k*k - 1, dp))
   end function onsager_coefficient
 
-  !> C_k = <cos 2k theta>, S_k = <sin 2k theta>, k = 1..K (complex powers of e^{2i theta}).
+  !> C_k = <cos 2k theta>, S_k = <sin 2k theta>, k = 1..K (powers of e^{2i theta}, by
+  !> chunks of samples so that the loops over a chunk vectorise).
   subroutine onsager_modes(theta, kmax, ck, sk)
     real(dp), intent(in) :: theta(:)
     integer, intent(in) :: kmax
     real(dp), intent(out) :: ck(kmax), sk(kmax)
-    integer(i8) :: i
-    integer :: k
-    complex(dp) :: z, zk
+    real(dp), allocatable :: c2(:), s2(:)
+    allocate(c2(size(theta)), s2(size(theta)))
+    c2 = cos(2.0_dp*theta)
+    s2 = sin(2.0_dp*theta)
+    call modes_of(c2, s2, kmax, ck, sk)
+  end subroutine onsager_modes
+
+  !> The same from z = e^{2 i theta} = c2 + i s2.
+  subroutine modes_of(c2, s2, kmax, ck, sk)
+    real(dp), intent(in) :: c2(:), s2(:)
+    integer, intent(in) :: kmax
+    real(dp), intent(out) :: ck(kmax), sk(kmax)
+    real(dp) :: zr(chunk), zi(chunk), pr(chunk), pi_(chunk), tmp(chunk)
+    integer(i8) :: i0, n
+    integer :: k, m
+    n = size(c2, kind=i8)
     ck = 0.0_dp
     sk = 0.0_dp
-    do i = 1, size(theta, kind=i8)
-      z = cmplx(cos(2.0_dp*theta(i)), sin(2.0_dp*theta(i)), dp)
-      zk = z
+    do i0 = 1, n, chunk
+      m = int(min(int(chunk, i8), n - i0 + 1))
+      zr(1:m) = c2(i0:i0 + m - 1)
+      zi(1:m) = s2(i0:i0 + m - 1)
+      pr(1:m) = zr(1:m)
+      pi_(1:m) = zi(1:m)
       do k = 1, kmax
-        ck(k) = ck(k) + real(zk, dp)
-        sk(k) = sk(k) + aimag(zk)
-        zk = zk*z
+        ck(k) = ck(k) + sum(pr(1:m))
+        sk(k) = sk(k) + sum(pi_(1:m))
+        tmp(1:m) = pr(1:m)*zr(1:m) - pi_(1:m)*zi(1:m)
+        pi_(1:m) = pr(1:m)*zi(1:m) + pi_(1:m)*zr(1:m)
+        pr(1:m) = tmp(1:m)
       end do
     end do
-    ck = ck/real(size(theta), dp)
-    sk = sk/real(size(theta), dp)
-  end subroutine onsager_modes
+    ck = ck/real(n, dp)
+    sk = sk/real(n, dp)
+  end subroutine modes_of
 
   !> One transport step of all samples (semi-implicit Euler, header).
   subroutine transport(f, dt, theta, omega)
@@ -119,10 +140,11 @@ contains
     real(dp), intent(in) :: dt
     real(dp), intent(in) :: theta(:)
     real(dp), intent(inout) :: omega(:)
-    real(dp) :: c(size(theta)), s(size(theta))
+    real(dp), allocatable :: c(:), s(:)
     real(dp) :: acc, sn, cs, g
     integer(i8) :: i, j, n
     n = size(theta, kind=i8)
+    allocate(c(n), s(n))
     c = cos(theta)
     s = sin(theta)
     g = dt*f%alpha*f%length**2/(f%inertia*real(n, dp))
@@ -137,31 +159,43 @@ contains
     end do
   end subroutine kick_onsager_exact
 
-  !> omega += dt F with U truncated at K modes: F = -(alpha L^2/I) sum_k a_k 2k (S_k cos 2k th - C_k sin 2k th).
+  !> omega += dt F with U truncated at K modes:
+  !> F = -(alpha L^2/I) sum_k a_k 2k (S_k cos 2k th - C_k sin 2k th) = -(alpha L^2/I) Re sum_k b_k z^k,
+  !> b_k = a_k 2k (S_k + i C_k), z = e^{2 i th}.
   subroutine kick_onsager_fourier(f, dt, theta, omega)
     type(field_t), intent(in) :: f
     real(dp), intent(in) :: dt
     real(dp), intent(in) :: theta(:)
     real(dp), intent(inout) :: omega(:)
-    real(dp) :: ck(f%modes), sk(f%modes), acc, g
-    complex(dp) :: z, zk, bk(f%modes)
-    integer(i8) :: i
-    integer :: k
-    call onsager_modes(theta, f%modes, ck, sk)
+    real(dp) :: ck(f%modes), sk(f%modes), br(f%modes), bi(f%modes), g
+    real(dp) :: zr(chunk), zi(chunk), pr(chunk), pi_(chunk), tmp(chunk), acc(chunk)
+    real(dp), allocatable :: c2(:), s2(:)
+    integer(i8) :: i0, n
+    integer :: k, m
+    allocate(c2(size(theta)), s2(size(theta)))
+    c2 = cos(2.0_dp*theta)
+    s2 = sin(2.0_dp*theta)
+    call modes_of(c2, s2, f%modes, ck, sk)
     do k = 1, f%modes
-      ! a_k 2k (S_k cos - C_k sin) = Re(b_k z^k) with b_k = a_k 2k (S_k + i C_k)
-      bk(k) = onsager_coefficient(k)*real(2*k, dp)*cmplx(sk(k), ck(k), dp)
+      br(k) = onsager_coefficient(k)*real(2*k, dp)*sk(k)
+      bi(k) = onsager_coefficient(k)*real(2*k, dp)*ck(k)
     end do
     g = dt*f%alpha*f%length**2/f%inertia
-    do i = 1, size(theta, kind=i8)
-      z = cmplx(cos(2.0_dp*theta(i)), sin(2.0_dp*theta(i)), dp)
-      zk = z
-      acc = 0.0_dp
+    n = size(theta, kind=i8)
+    do i0 = 1, n, chunk
+      m = int(min(int(chunk, i8), n - i0 + 1))
+      zr(1:m) = c2(i0:i0 + m - 1)
+      zi(1:m) = s2(i0:i0 + m - 1)
+      pr(1:m) = zr(1:m)
+      pi_(1:m) = zi(1:m)
+      acc(1:m) = 0.0_dp
       do k = 1, f%modes
-        acc = acc + real(bk(k)*zk, dp)
-        zk = zk*z
+        acc(1:m) = acc(1:m) + br(k)*pr(1:m) - bi(k)*pi_(1:m)
+        tmp(1:m) = pr(1:m)*zr(1:m) - pi_(1:m)*zi(1:m)
+        pi_(1:m) = pr(1:m)*zi(1:m) + pi_(1:m)*zr(1:m)
+        pr(1:m) = tmp(1:m)
       end do
-      omega(i) = omega(i) - g*acc
+      omega(i0:i0 + m - 1) = omega(i0:i0 + m - 1) - g*acc(1:m)
     end do
   end subroutine kick_onsager_fourier
 

@@ -1,0 +1,211 @@
+"""Kind 'rods' (seed 001, space-homogeneous DSMC of rods of vanishing girth): the collision
+law's exact invariants, the energy-loss formula, the transport step's order, relaxation to the
+exact equilibria within error bars computed from N, BKW, the Babovsky pair count, checkpoints
+and refused input. Small N and short runs: the whole file runs in well under a minute."""
+from __future__ import annotations
+
+import json
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pyorch import SceneError
+from pyorch import rods
+from pyorch.run import engine_executable, resume, run
+from pyorch.scene import Scene
+
+ROOT = Path(__file__).resolve().parents[1]
+TEST1 = ROOT / "runs" / "rods_test1_free.nml"
+BKW = ROOT / "runs" / "rods_bkw.nml"
+
+
+def _run(tmp: Path, name: str, base: Path = TEST1, **over: object) -> Path:
+    sc = Scene.read(base).with_overrides({"output.checkpoint_every": 0, **over})
+    out = tmp / name
+    run(sc, out, progress=False)
+    return out
+
+
+def test_elastic_collisions_conserve_energy_and_momentum_exactly(tmp_path: Path) -> None:
+    """Every elastic collision (e_v = e_w = 1) keeps the pair's energy and momentum to
+    round-off (the audit's maxima over all collisions); the totals stay put."""
+    out = _run(tmp_path, "el", **{"rods.n": 20000, "rods.t_end": 4.0,
+                                  "output.collision_audit": True})
+    h = rods.history(out)
+    assert h["collisions"].iloc[-1] > 0.9 * 20000 * 4.0 / 2
+    assert h["audit_dE"].max() < 1e-14
+    assert h["audit_dp"].max() < 1e-15
+    e = h["E_total"].to_numpy()
+    assert np.abs(e - e[0]).max() < 1e-13 * e[0]
+    assert np.abs(h["E_lost"]).max() < 1e-14
+    for c in ("px", "py"):
+        assert np.ptp(h[c]) < 1e-15
+
+
+@pytest.mark.parametrize("e_v, e_w", [(0.8, 0.8), (0.9, 0.5)])
+def test_inelastic_energy_loss_matches_formula(tmp_path: Path, e_v: float, e_w: float) -> None:
+    """With e < 1 each collision's energy change equals
+    (1+e_v) J g_t + (1+e_v)^2 J^2/m + (1+e_w) J g_r + (1+e_w)^2 J^2 A/2 (dsmc_collisions),
+    = -(1-e^2)(V.n)^2/(2K) for e_v = e_w; the total loss is the sum of the formula's."""
+    out = _run(tmp_path, "inel", **{"rods.n": 20000, "rods.t_end": 4.0,
+                                    "collisions.e_v": e_v, "collisions.e_w": e_w,
+                                    "output.collision_audit": True})
+    h = rods.history(out)
+    assert h["audit_dE"].max() < 1e-13
+    assert h["audit_dp"].max() < 1e-15
+    e0 = h["E_total"].iloc[0]
+    assert h["E_total"].iloc[-1] < 0.8 * e0
+    assert np.abs(h["E_total"] + h["E_lost"] - e0).max() < 1e-13 * e0
+
+
+def test_inelastic_cooling_of_point_particles(tmp_path: Path) -> None:
+    """Point particles, restitution e: T^n = (1 - p (1 - e^2)/4)^n T^0 exactly in
+    expectation (pyorch.rods.cooling_discrete), checked within 5 sigma of T (sigma from N)."""
+    n, e = 50000, 0.7
+    out = _run(tmp_path, "cool", BKW, **{"rods.n": n, "rods.t_end": 8.0,
+                                         "collisions.e_v": e, "rods.v_init": "maxwellian",
+                                         "rods.v_shift": 0.0})
+    h = rods.history(out)
+    p = rods.pair_fraction(n, 0.1, 1.0)
+    ref = rods.cooling_discrete(h["step"], p, e, h["T_trans"].iloc[0])
+    sigma = ref / np.sqrt(n)                  # std of the mean of m|v|^2/2 at temperature T
+    assert np.all(np.abs(h["T_trans"] - ref) < 5 * sigma + 1e-12)
+    assert h["T_trans"].iloc[-1] < 0.5 * h["T_trans"].iloc[0]
+
+
+def test_quadratic_transport_first_order(tmp_path: Path) -> None:
+    """Collisions off: the semi-implicit Euler transport of the quadratic well converges to the
+    exact solution of the slide's linear ODE at first order in dt."""
+    errs = []
+    for k, dt in enumerate([0.02, 0.01, 0.005]):
+        out = _run(tmp_path, f"q{k}", **{
+            "rods.n": 2, "rods.v_init": "maxwellian", "rods.v_spread": 0.0,
+            "rods.theta_init": "gaussian", "rods.theta0": 1.0, "rods.theta_spread": 0.0,
+            "rods.omega0": 0.5, "rods.omega_spread": 0.0, "rods.dt": dt, "rods.t_end": 5.0,
+            "collisions.enabled": False, "mean_field.potential": "quadratic",
+            "mean_field.alpha": 2.0, "mean_field.beta": 0.3, "mean_field.theta_hat": 0.2,
+            "output.history_every": 0, "output.histogram_every": 0,
+            "output.samples_every": 10**9})
+        s = rods.samples(out)
+        last = s[s["step"] == s["step"].max()]
+        th, w = rods.quadratic_exact(last["t"].to_numpy(), 1.0, 0.5, 2.0, 0.3, 0.2)
+        errs.append(max(np.abs(last["theta"] - th).max(), np.abs(last["omega"] - w).max()))
+    order = np.log2(np.array(errs[:-1]) / np.array(errs[1:]))
+    assert np.allclose(order, 1.0, atol=0.05), (errs, order)
+
+
+def test_relaxation_to_equipartition(tmp_path: Path) -> None:
+    """Test 1 (thin rods for a quick exchange): T_trans and T_rot relax to the one temperature
+    T = (2/3)(E/N - |u|^2/2); <|v-u|^4> -> 8 T^2; theta stays uniform. Error bars from N."""
+    n = 40000
+    out = _run(tmp_path, "relax", **{"rods.n": n, "rods.t_end": 25.0, "rods.dt": 0.1,
+                                     "rods.inertia_model": "thin_rod",
+                                     "output.history_every": 10})
+    h = rods.history(out)
+    ss = rods.steady_state(out)
+    T = ss["T"]
+    last = h.iloc[-1]
+    sig = T * np.sqrt(2.0 / n)
+    assert abs(last["T_trans"] - T) < 5 * sig
+    assert abs(last["T_rot"] - T) < 5 * sig * np.sqrt(2)
+    assert abs(h["T_trans"].iloc[0] - h["T_rot"].iloc[0]) > 50 * sig       # it did relax
+    assert abs(last["M4"] - 8 * T**2) < 5 * np.sqrt(320.0 / n) * T**2 + 1e-3
+    assert last["S1"] < 4 / np.sqrt(n) and last["S2"] < 4 / np.sqrt(n)
+
+
+def test_h_theorem(tmp_path: Path) -> None:
+    """Test 1: the H estimate of (v_x, v_y, omega) never rises above its running minimum by
+    more than 4 of its own equilibrium fluctuations."""
+    out = _run(tmp_path, "h", **{"rods.n": 40000, "rods.t_end": 20.0, "rods.dt": 0.1,
+                                 "rods.inertia_model": "thin_rod", "output.history_every": 5})
+    hh = rods.history(out)["H"].to_numpy()
+    noise = np.std(hh[-len(hh) // 3:])
+    assert hh[0] - hh[-1] > 20 * noise
+    assert np.max(hh - np.minimum.accumulate(hh)) < 4 * noise + 1e-12
+
+
+def test_bkw_fourth_moment(tmp_path: Path) -> None:
+    """Point particles, Maxwell molecules, BKW data: M4 follows the scheme's closed form
+    8 - 2 (1 - p/4)^n (with the sample's own M4(0), m2) within 5 sigma, and the exact
+    8 - 2 exp(-t/4) within 5 sigma plus the O(dt) splitting difference."""
+    n = 100000
+    out = _run(tmp_path, "bkw", BKW, **{"rods.n": n, "rods.t_end": 8.0})
+    h = rods.history(out)
+    m2 = 2 * h["E_kin"].iloc[0]
+    p = rods.pair_fraction(n, 0.1, 1.0)
+    disc = rods.bkw_m4_discrete(h["step"], p, h["M4"].iloc[0], m2)
+    sigma = np.sqrt(320.0 / n)
+    assert np.all(np.abs(h["M4"] - disc) < 5 * sigma)
+    exact = rods.bkw_m4(h["t"])
+    bias = np.abs(rods.bkw_m4_discrete(h["step"], p) - exact)
+    assert np.all(np.abs(h["M4"] - exact) < 5 * sigma + bias + abs(h["M4"].iloc[0] - 6))
+    assert h["M4"].iloc[-1] - h["M4"].iloc[0] > 1.0
+
+
+def test_babovsky_pair_count_exact(tmp_path: Path) -> None:
+    """floor(N dt/(2 tau)) pairs every step: N = 1001, dt = 0.3, tau = 1 -> 150 per step."""
+    out = _run(tmp_path, "pairs", **{"rods.n": 1001, "rods.dt": 0.3, "rods.t_end": 3.0,
+                                     "output.history_every": 1})
+    h = rods.history(out)
+    assert np.array_equal(np.diff(h["collisions"].to_numpy()), np.full(len(h) - 1, 150))
+    assert json.loads((out / "run.json").read_text())["pairs_per_step"] == 150
+
+
+def test_dipole_equilibrium_von_mises(tmp_path: Path) -> None:
+    """Test 3: W = alpha sin(theta - theta_hat) relaxes to von Mises about theta_hat - pi/2 with
+    kappa = alpha/T: <cos(theta - theta_hat + pi/2)> = I1/I0(kappa) within 5 sigma."""
+    n = 20000
+    out = _run(tmp_path, "dip", ROOT / "runs" / "rods_test3_dipole.nml", **{
+        "rods.n": n, "rods.t_end": 30.0, "rods.dt": 0.1, "rods.inertia_model": "thin_rod",
+        "output.samples_every": 10**9, "output.histogram_every": 0})
+    s = rods.samples(out)
+    last = s[s["step"] == s["step"].max()]
+    h = rods.history(out)
+    T = h["T"].iloc[-len(h) // 5:].mean()
+    kappa = 1.0 / T
+    c = np.cos(last["theta"] + np.pi / 2)      # theta_hat = 0
+    ref = rods._bessel_ratio(kappa)
+    assert abs(c.mean() - ref) < 5 * c.std() / np.sqrt(n) + 0.01 * ref
+
+
+def test_resume_bit_identical(tmp_path: Path) -> None:
+    over = {"rods.n": 3000, "rods.t_end": 5.0, "output.checkpoint_every": 30,
+            "output.histogram_every": 25}
+    full = _run(tmp_path, "full", **over)
+    sc = Scene.read(TEST1).with_overrides(over)
+    path = sc.write(tmp_path / "s.nml")
+    part = tmp_path / "part"
+    p = subprocess.run([str(engine_executable()), str(path), "--out", str(part), "--quiet",
+                        "--stop-at", "47"], capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr
+    resume(part, progress=False)
+    for name in ("history.dat", "histograms.dat"):
+        assert (full / name).read_bytes() == (part / name).read_bytes(), name
+
+
+@pytest.mark.parametrize("key, value, needle", [
+    ("rods.dt", 1.5, "&rods dt = 1.5"),            # dt > tau = 1: Nanbu-Babovsky refuses
+    ("collisions.e_v", 1.2, "&collisions e_v"),
+    ("rods.n", 1, "&rods n"),
+    ("mean_field.alpha", float("nan"), "&mean_field alpha"),
+    ("mean_field.potential", "'harmonic'", "&mean_field potential"),
+    ("rods.inertia_model", "'sphere'", "&rods inertia_model"),
+])
+def test_bad_input_names_key_and_range(tmp_path: Path, key: str, value: object,
+                                       needle: str) -> None:
+    sc = Scene.read(TEST1).with_overrides({key: value} if not isinstance(value, str)
+                                          else [f"{key}={value}"])
+    out = tmp_path / "bad"
+    with pytest.raises(SceneError, match="allowed") as exc:
+        run(sc, out, progress=False)
+    assert needle in str(exc.value)
+    assert not out.exists()
+
+
+def test_dt_above_tau_names_tau(tmp_path: Path) -> None:
+    sc = Scene.read(TEST1).with_overrides({"rods.dt": 0.5, "collisions.tau": 0.25})
+    with pytest.raises(SceneError, match=r"&rods dt = 0\.5: allowed \(0, &collisions tau = "
+                                         r"2\.5e-001?1?\]"):
+        run(sc, tmp_path / "bad", progress=False)
