@@ -8,14 +8,14 @@ module api
   use engine, only: sim_t, sim_load, sim_forces, sim_step, sim_energy, piston_energy, &
        time_pair_pass
   use model, only: piston_free
-  use runner, only: sim_execute, sim_resume
+  use runner, only: sim_execute, sim_resume, sim_check
   use protocol, only: piston_at
   use pair_forces, only: dipole_kernel
   use neighbours, only: nlist_due
   use integrators, only: estimate_velocity, finish_velocity
   implicit none
   private
-  public :: run_scene, resume_run, load_scene, n_particles, get_state, set_state, compute_forces, &
+  public :: run_scene, resume_run, check_scene, load_scene, n_particles, get_state, set_state, compute_forces, &
        advance_steps, piston_state, model_groups, energies, kernel, precision_probe, &
        set_threads, list_audit, protocol_times, set_piston, bench_pairs
 
@@ -27,7 +27,7 @@ contains
     integer, intent(out) :: code
     character(len=1024), intent(out) :: message
     type(status_t) :: st
-    call sim_execute(path, outdir, .false., -1_i8, st)
+    call sim_execute(path, outdir, .false., -1_i8, .false., st)
     code = st%code
     message = st%msg
   end subroutine run_scene
@@ -43,7 +43,19 @@ contains
     message = st%msg
   end subroutine resume_run
 
-  !> Load and validate a scene into the in-memory simulation (writes nothing).
+  !> Validate a scene of any kind (writes nothing); n_steps: units of work of the run.
+  subroutine check_scene(path, code, message, n_steps)
+    character(len=*), intent(in) :: path
+    integer, intent(out) :: code
+    character(len=1024), intent(out) :: message
+    integer(i8), intent(out) :: n_steps
+    type(status_t) :: st
+    call sim_check(path, n_steps, st)
+    code = st%code
+    message = st%msg
+  end subroutine check_scene
+
+  !> Load and validate a bed scene into the in-memory simulation (writes nothing).
   subroutine load_scene(path, code, message)
     character(len=*), intent(in) :: path
     integer, intent(out) :: code

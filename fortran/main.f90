@@ -1,5 +1,5 @@
-!> magbed: the standalone engine.
-!>   magbed SCENE.nml [--out DIR] [--check] [--quiet] [--stop-at STEP]
+!> magbed: the standalone engine for every scene kind (dispatch on &scene kind).
+!>   magbed SCENE.nml [--out DIR] [--overwrite] [--check] [--quiet] [--stop-at STEP]
 !>   magbed --resume RUN_DIR [--quiet] [--stop-at STEP]
 !> Exit codes: 0 ok (or paused by --stop-at), 2 bad input (nothing written),
 !> 3 numerical guard, 4 I/O, 5 interrupted by SIGTERM/SIGINT (checkpoint written).
@@ -8,8 +8,7 @@ program magbed
   use, intrinsic :: iso_c_binding, only: c_int
   use kinds, only: i8
   use errors, only: status_t, exit_bad_input
-  use engine, only: sim_t, sim_load
-  use runner, only: sim_execute, sim_resume
+  use runner, only: sim_execute, sim_resume, sim_check
   use signals, only: install_handlers
   implicit none
   interface
@@ -20,11 +19,10 @@ program magbed
     end subroutine c_exit
   end interface
   type(status_t) :: st
-  type(sim_t) :: sim
   character(len=4096) :: arg, path, dir, resume_dir
-  logical :: check, quiet
+  logical :: check, quiet, overwrite
   integer :: i, nargs, ios
-  integer(i8) :: stop_at
+  integer(i8) :: stop_at, total
 
   path = ''
   resume_dir = ''
@@ -32,6 +30,7 @@ program magbed
   dir = '.'
   check = .false.
   quiet = .false.
+  overwrite = .false.
   nargs = command_argument_count()
   i = 1
   do while (i <= nargs)
@@ -43,6 +42,8 @@ program magbed
       call get_command_argument(i, dir)
     case ('--check')
       check = .true.
+    case ('--overwrite')
+      overwrite = .true.
     case ('--resume')
       i = i + 1
       if (i > nargs) call usage('--resume needs a run directory')
@@ -56,7 +57,7 @@ program magbed
     case ('--quiet', '-q')
       quiet = .true.
     case ('--help', '-h')
-      write(output_unit, '(a)') 'usage: magbed SCENE.nml [--out DIR] [--check] [--quiet] [--stop-at STEP]'
+      write(output_unit, '(a)') 'usage: magbed SCENE.nml [--out DIR] [--overwrite] [--check] [--quiet] [--stop-at STEP]'
       write(output_unit, '(a)') '       magbed --resume RUN_DIR [--quiet] [--stop-at STEP]'
       stop
     case default
@@ -74,14 +75,14 @@ program magbed
     call install_handlers()
     call sim_resume(trim(resume_dir), .not. quiet, stop_at, st)
   else if (check) then
-    call sim_load(sim, trim(path), st)
+    call sim_check(trim(path), total, st)
     if (st%code == 0) then
-      write(output_unit, '(a,i0,a,i0,a)') 'ok: ', sim%s%n, ' particles, ', sim%p%n_steps, ' steps'
+      write(output_unit, '(a,i0,a)') 'ok: ', total, ' steps'
       stop
     end if
   else
     call install_handlers()
-    call sim_execute(trim(path), trim(dir), .not. quiet, stop_at, st)
+    call sim_execute(trim(path), trim(dir), .not. quiet, stop_at, overwrite, st)
   end if
   if (st%code /= 0) then
     write(error_unit, '(a)') 'magbed: error: '//trim(st%msg)
@@ -94,7 +95,7 @@ contains
   subroutine usage(msg)
     character(len=*), intent(in) :: msg
     write(error_unit, '(a)') 'magbed: error: '//msg
-    write(error_unit, '(a)') 'usage: magbed SCENE.nml [--out DIR] [--check] [--quiet] [--stop-at STEP]'
+    write(error_unit, '(a)') 'usage: magbed SCENE.nml [--out DIR] [--overwrite] [--check] [--quiet] [--stop-at STEP]'
     write(error_unit, '(a)') '       magbed --resume RUN_DIR [--quiet] [--stop-at STEP]'
     flush(error_unit)
     call c_exit(int(exit_bad_input, c_int))

@@ -39,7 +39,7 @@ def _parser() -> argparse.ArgumentParser:
     pl.add_argument("run_dir", type=Path)
     pl.add_argument("--out", type=Path, default=None)
     pl.add_argument("--no-structure", action="store_true",
-                    help="skip the Voronoi/force figures of pyorch.bed.analyze.plot_run")
+                    help="bed: skip the Voronoi/force figures of pyorch.bed.analyze.plot_run")
 
     an = sub.add_parser("analyze", help="structure/force tables of a run directory as CSV")
     an.add_argument("run_dir", type=Path)
@@ -73,7 +73,8 @@ def main(argv: list[str] | None = None) -> int:
             from pyorch.scene import Scene, validate
 
             info = validate(Scene.read(args.scene).with_overrides(args.overrides))
-            print(f"ok: {info['n_particles']} particles, {info['n_steps']} steps")
+            extra = f"{info['n_particles']} particles, " if "n_particles" in info else ""
+            print(f"ok: {info['kind']}, {extra}{info['n_steps']} steps")
             return 0
         if args.cmd == "sweep":
             from pyorch.sweep import cmd_sweep
@@ -84,20 +85,17 @@ def main(argv: list[str] | None = None) -> int:
 
             return main_bench(args)
         if args.cmd == "plot":
-            from pyorch.bed.plots import save_run_plots
+            from pyorch import kinds
 
-            for p in save_run_plots(args.run_dir, args.out):
+            plugin = kinds.plugin(kinds.of_run(args.run_dir))
+            for p in plugin.save_run_plots(args.run_dir, args.out, full=not args.no_structure):
                 print(p)
-            if not args.no_structure:
-                from pyorch.bed.analyze import plot_run
-
-                for p in plot_run(args.run_dir, args.out):
-                    print(p)
             return 0
         if args.cmd == "analyze":
-            from pyorch.bed.analyze import write_tables
+            from pyorch import kinds
 
-            for p in write_tables(args.run_dir, args.out):
+            plugin = kinds.plugin(kinds.of_run(args.run_dir))
+            for p in plugin.write_tables(args.run_dir, args.out):
                 print(p)
             return 0
     except SceneError as exc:
@@ -124,9 +122,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
         meta = result.meta
         print(f"{out}: {meta['status']}, {meta['steps_done']} steps")
         if not args.no_plots:
-            from pyorch.bed.plots import save_run_plots
+            from pyorch import kinds
 
-            save_run_plots(out)
+            kinds.plugin(kinds.of_run(out)).save_run_plots(out)
         return 0
     if args.scene is None:
         raise SceneError("pyorch run: give a scene file (or --resume RUN_DIR)")
@@ -140,8 +138,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
     print(f"{out}: {meta['status']}, {meta['steps_done']} steps, "
           f"{meta['wall_time_s']:.2f} s ({1e6 * meta['wall_time_per_step_s']:.1f} us/step)")
     if not args.no_plots:
-        from pyorch.bed.plots import save_run_plots
+        from pyorch import kinds
 
-        paths = save_run_plots(out)
+        paths = kinds.plugin(kinds.of_run(out)).save_run_plots(out)
         print(f"{len(paths)} plots in {out / 'plots'}")
     return 0

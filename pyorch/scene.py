@@ -18,8 +18,10 @@ import f90nml
 
 from pyorch import SceneError
 
-GROUPS = ("scene", "material", "cell", "particles", "physics", "integration",
-          "protocol", "output")
+from pyorch.kinds import KINDS
+
+#: every namelist group of every kind, in the order they are written
+GROUPS = tuple(dict.fromkeys(g for k in KINDS.values() for g in k.groups))
 
 
 def parse_override(text: str) -> tuple[str, str, Any]:
@@ -107,7 +109,9 @@ class Scene:
 def validate(scene: Scene | str | Path) -> dict[str, Any]:
     """Validate through the engine (f2py door); return a summary dict.
 
-    Raises SceneError with the engine's message (file, group, key, value, range).
+    Every kind: ``kind``, ``n_steps`` (units of work). The bed adds ``n_particles`` and
+    ``piston_h0`` [D1]. Raises SceneError with the engine's message (file, group, key, value,
+    range).
     """
     from pyorch import _engine  # compiled module
 
@@ -118,10 +122,17 @@ def validate(scene: Scene | str | Path) -> dict[str, Any]:
             path = Path(scene)
             if not path.is_file():
                 raise SceneError(f"{path}: scene file not found")
-        code, msg = _engine.api.load_scene(str(path))
+        shown = str(getattr(scene, "source", None) or path)
+        code, msg, n_steps = _engine.api.check_scene(str(path))
         if code != 0:
             text = msg.decode() if isinstance(msg, bytes) else str(msg)
-            raise SceneError(text.strip().replace(str(path), str(getattr(scene, "source", None) or path)))
-        h, force, phase, n_steps = _engine.api.piston_state()
-        n = int(_engine.api.n_particles())
-    return {"n_particles": n, "n_steps": int(n_steps), "piston_h0": float(h)}
+            raise SceneError(text.strip().replace(str(path), shown))
+        info: dict[str, Any] = {"n_steps": int(n_steps)}
+        sc = scene if isinstance(scene, Scene) else Scene.read(path)
+        info["kind"] = str(sc.get("scene", "kind", ""))
+        if info["kind"] == "magnet_bed":
+            code, msg = _engine.api.load_scene(str(path))
+            h, force, phase, _ = _engine.api.piston_state()
+            info["n_particles"] = int(_engine.api.n_particles())
+            info["piston_h0"] = float(h)
+    return info

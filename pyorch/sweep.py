@@ -59,8 +59,9 @@ this host (orphan of a killed worker) the task waits for it; a run.json updated
 less than STALE_GRACE_S ago gets that long to turn final (engine dying on
 another host).
 
-Metrics: ``metrics=`` is a picklable callable ``Run -> dict``; the default
-:func:`summary_metrics` gives F_max [m1 g], H_at_F_max [D1], D_hat [D1] and the
+Metrics: ``metrics=`` is a picklable callable ``Run -> dict``; the default is the scene
+kind's ``default_metrics`` (:mod:`pyorch.kinds`); for the bed,
+:func:`pyorch.bed.metrics.summary_metrics` gives F_max [m1 g], H_at_F_max [D1], D_hat [D1] and the
 n5/n6/n7/Psi6 of the frame nearest to maximum compression.
 """
 from __future__ import annotations
@@ -98,7 +99,6 @@ MANIFEST = "manifest.json"
 RESULTS = "results"
 STALE_GRACE_S = 30.0  # s: a 'running' run.json younger than this may belong to a dying engine
 RESUMABLE = ("running", "interrupted", "paused")  # run.json statuses a checkpoint can continue
-METRIC_KEYS = ("F_max", "H_at_F_max", "D_hat", "n5", "n6", "n7", "Psi6")
 _TOML_KEYS = {"base", "out", "seeds", "grid", "set", "points", "description", "metrics"}
 
 
@@ -163,54 +163,12 @@ def point_name(overrides: Mapping[str, Any], label_keys: Sequence[str] | None = 
 # --------------------------------------------------------------------------------------------------
 # Metrics
 # --------------------------------------------------------------------------------------------------
-def _nan_metrics() -> dict[str, float]:
-    return {k: math.nan for k in METRIC_KEYS}
+def _kind_plugin(base_path: str | Path) -> Any:
+    """The pyorch subpackage of the base scene's kind (its default metrics and their keys)."""
+    from pyorch import kinds
+    from pyorch.scene import Scene
 
-
-def _nearest_row(df: pd.DataFrame, step: int) -> pd.Series:
-    """Row of ``df`` whose ``step`` is nearest to ``step``."""
-    return df.loc[(df["step"] - step).abs().idxmin()]
-
-
-def _frame_metrics_near(run: Any, step: int) -> dict[str, float]:
-    """n5, n6, n7, Psi6 of the particle frame nearest to ``step`` (NaN without frames)."""
-    from pyorch.bed.analysis import frame_metrics
-    from pyorch.io import frame_at
-
-    if not (run.dir / "particles.dat").is_file():
-        return {}
-    frames = run.frames()
-    if frames.empty:
-        return {}
-    steps = pd.Series(frames["step"].unique())
-    nearest = int(steps.iloc[(steps - step).abs().idxmin()])
-    fm = frame_metrics(frame_at(frames, nearest))
-    return {k: float(fm[k]) for k in ("n5", "n6", "n7", "Psi6")}
-
-
-def summary_metrics(run: Any) -> dict[str, float]:
-    """Default per-point metrics of a completed run (NaN when not available).
-
-    F_max: maximum piston force over the compression phase (phase 2) [m1 g];
-    H_at_F_max: piston height at that step [D1]; D_hat: mean inter-particle
-    distance [D1] at the mean_distance.dat row nearest to the F_max step;
-    n5, n6, n7 (Voronoi polygon fractions) and Psi6 of the particle frame
-    nearest to the F_max step (taken as maximum compression).
-    """
-    out = _nan_metrics()
-    piston = run.piston()
-    comp = piston[piston["phase"] == 2]
-    if comp.empty:
-        return out
-    peak = comp.loc[comp["F_piston"].idxmax()]
-    step = int(peak["step"])
-    out["F_max"], out["H_at_F_max"] = float(peak["F_piston"]), float(peak["H"])
-    if (run.dir / "mean_distance.dat").is_file():
-        md = run.mean_distance()
-        if not md.empty:
-            out["D_hat"] = float(_nearest_row(md, step)["D_hat"])
-    out.update(_frame_metrics_near(run, step))
-    return out
+    return kinds.plugin(str(Scene.read(base_path).get("scene", "kind", "magnet_bed")))
 
 
 # --------------------------------------------------------------------------------------------------
@@ -341,7 +299,7 @@ def run_point(base_path: str | Path, overrides: Mapping[str, Any], out_dir: str 
 
     Skips a completed run, resumes or re-runs an interrupted one, runs the
     engine executable (door "exe", 1 thread) otherwise, then evaluates
-    ``metrics`` (default :func:`summary_metrics`) on completed runs. Returns a
+    ``metrics`` (default: the kind's ``default_metrics``, for the bed :func:`pyorch.bed.metrics.summary_metrics`) on completed runs. Returns a
     dict: name, dir, action (skipped|ran|reran|resumed|waited|refused|error),
     status (completed | refused | failed: ...), message, wall_time_s [s],
     steps_done and the metric values.
@@ -349,11 +307,14 @@ def run_point(base_path: str | Path, overrides: Mapping[str, Any], out_dir: str 
     out = Path(os.path.abspath(out_dir))
     row: dict[str, Any] = {"name": out.name, "dir": str(out), "action": "error", "status": "",
                            "message": "", "wall_time_s": math.nan, "steps_done": math.nan}
-    row.update(_nan_metrics() if metrics is None else {})
     try:
+        if metrics is None:
+            plugin = _kind_plugin(base_path)
+            metrics = plugin.default_metrics
+            row.update({k: math.nan for k in plugin.METRIC_KEYS})
         row.update(_execute(Path(base_path), overrides, out))
         if row["status"] == "completed":
-            row.update(_safe_metrics(out, metrics or summary_metrics))
+            row.update(_safe_metrics(out, metrics))
     except Exception as exc:  # the task must never raise
         row.update(status="failed: error", message=f"{type(exc).__name__}: {exc}")
     return row
@@ -426,7 +387,7 @@ class Sweep:
         if self.seeds is not None and (SEED_KEY in self.grid or any(SEED_KEY in p for p in self.point_specs)):
             raise SceneError(f"{SEED_KEY} is given both in seeds and in grid/points")
         self.out = Path(os.path.abspath(out)) if out else self.base.parent / "out" / "sweeps" / self.base.stem
-        self.metrics: MetricFn | None = None   # default summary_metrics; TOML key 'metrics'
+        self.metrics: MetricFn | None = None   # default: the kind's default_metrics; TOML key 'metrics'
 
     @classmethod
     def from_toml(cls, path: str | Path) -> "Sweep":
@@ -512,7 +473,7 @@ class Sweep:
         Uses ``client`` if given, else joins ``scheduler_address``, else starts
         ``cluster`` ("local" | "slurm", see module docstring) with ``n_workers``
         one-thread workers (closed afterwards). ``metrics``: picklable
-        ``Run -> dict`` (default :func:`summary_metrics`); ``task``: the task
+        ``Run -> dict`` (default: the kind's ``default_metrics``, for the bed :func:`pyorch.bed.metrics.summary_metrics`); ``task``: the task
         function (default :func:`run_point`, same signature, must not raise).
         Writes manifest.json first and results.csv (+ .parquet) at the end.
         """

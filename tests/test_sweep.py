@@ -24,6 +24,7 @@ from distributed import Client, LocalCluster
 from pyorch import SceneError
 from pyorch import run as prun
 from pyorch import sweep as sw
+from pyorch.bed import METRIC_KEYS
 from pyorch.run import Run, engine_executable
 from pyorch.scene import Scene, validate
 
@@ -94,7 +95,7 @@ def client():
 
 
 def metric_values(row: pd.Series | dict) -> list[float]:
-    return [float(row[k]) for k in sw.METRIC_KEYS]
+    return [float(row[k]) for k in METRIC_KEYS]
 
 
 # --------------------------------------------------------------------------------------------------

@@ -23,6 +23,8 @@ module method
 
   type, abstract :: method_t
     logical :: writing = .false.            !< outputs are open (set by open_outputs/close_outputs)
+    integer(i8) :: checkpoint_every = 0     !< units of work between checkpoints (0: none; set by load)
+    integer(i8) :: progress_every = 0       !< units between progress lines (0: about 200 per run)
   contains
     procedure(load_i), deferred :: load
     procedure(write_scene_i), deferred :: write_scene

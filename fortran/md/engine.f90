@@ -35,13 +35,8 @@ module engine
     type(state_t) :: pst                !< free piston as a one-body state (y = height)
     character(len=:), allocatable :: scene_path
     logical :: writing = .false.        !< a run directory is open
-    logical :: progress = .false.       !< print progress lines on stdout
     logical :: need_velocity = .false.  !< some force depends on velocity
     real(dp) :: area = 0                !< total particle area [D1^2]
-    integer(i8) :: progress_every = 1
-    integer(i8) :: clock0 = 0           !< system_clock at the start of this process' run
-    real(dp) :: wall_before = 0         !< wall time of earlier segments (resumed runs) [s]
-    character(len=:), allocatable :: dir  !< run directory
   end type sim_t
 
 contains
@@ -101,11 +96,6 @@ contains
     call piston_at(sim%p, 0.0_dp, h, phase)
     sim%s%piston_h = h
     sim%s%phase = phase
-    if (sim%sc%progress_every > 0) then
-      sim%progress_every = sim%sc%progress_every
-    else
-      sim%progress_every = max(1_i8, sim%p%n_steps/200)
-    end if
   end subroutine build_rest
 
   !> Forces at the current positions (and velocity estimate). need_fmag also

@@ -1,8 +1,7 @@
-!> Output files of a run directory: thesis-style text with a header naming
-!> every column and its unit, written only at their cadence; run.json with
-!> status and metadata, replaced atomically (temporary file + rename).
+!> Output files of a bed run: thesis-style text with a header naming every
+!> column and its unit, written only at their cadence (run.json, checkpoints
+!> and the run directory are the runner's, in fortran/core).
 module output
-  use, intrinsic :: iso_c_binding, only: c_int, c_char, c_null_char
   use kinds, only: dp, i8
   use errors, only: status_t, set_error, exit_io
   use model, only: model_t
@@ -11,44 +10,19 @@ module output
   private
 
   public :: output_t, output_open, output_close, write_piston, write_frame, &
-       write_distance, write_energy, write_run_json, make_dir, output_flush, output_sizes, &
-       output_names, rename_into_place
+       write_distance, write_energy, output_flush, output_sizes, output_names
 
   type :: output_t
     character(len=:), allocatable :: dir
     integer :: u_piston = -1, u_frame = -1, u_dist = -1, u_energy = -1  !< -1: not open (newunit never returns -1)
   end type output_t
 
-  interface
-    integer(c_int) function c_rename(old, new) bind(C, name='rename')
-      import :: c_int, c_char
-      character(kind=c_char), intent(in) :: old(*), new(*)
-    end function c_rename
-    integer(c_int) function c_mkdir(path, mode) bind(C, name='mkdir')
-      import :: c_int, c_char
-      character(kind=c_char), intent(in) :: path(*)
-      integer(c_int), value :: mode
-    end function c_mkdir
-  end interface
 
   character(len=*), parameter :: rfmt = 'es24.16e3'
   character(len=*), parameter :: output_names(4) = [character(len=17) :: 'piston.dat', &
        'particles.dat', 'mean_distance.dat', 'energy.dat']
 
 contains
-
-  !> Create a directory (parents must exist); an existing one is fine.
-  subroutine make_dir(path, st)
-    character(len=*), intent(in) :: path
-    type(status_t), intent(inout) :: st
-    integer(c_int) :: rc
-    logical :: there
-    inquire(file=trim(path)//'/.', exist=there)
-    if (there) return
-    rc = c_mkdir(trim(path)//c_null_char, int(o'755', c_int))
-    inquire(file=trim(path)//'/.', exist=there)
-    if (.not. there) call set_error(st, exit_io, trim(path)//': cannot create output directory')
-  end subroutine make_dir
 
   !> Open the output files: fresh with headers, or (append) continued after a
   !> resume, the files having been cut back to the checkpoint's sizes.
@@ -163,102 +137,5 @@ contains
     write(o%u_energy, '(i0,7(1x,'//rfmt//'))') s%step, s%t, ek, ep, ew, eg, epis, &
          ek + ep + ew + eg + epis
   end subroutine write_energy
-
-  !> run.json, replaced atomically.
-  subroutine write_run_json(dir, scene_path, status, code, message, steps_done, steps_total, &
-       t_now, wall, m, n, builds, pairs, evaluated, st)
-    character(len=*), intent(in) :: dir, scene_path, status, message
-    integer, intent(in) :: code, n
-    integer(i8), intent(in) :: steps_done, steps_total
-    integer(i8), intent(in) :: builds   !< neighbour-list builds
-    integer(i8), intent(in) :: pairs    !< pairs evaluated per step (list length or N(N-1)/2)
-    integer(i8), intent(in) :: evaluated  !< pair evaluations of the whole run
-    real(dp), intent(in) :: t_now, wall
-    type(model_t), intent(in) :: m
-    type(status_t), intent(inout) :: st
-    integer :: u, ios
-    character(len=:), allocatable :: tmp, final
-    real(dp) :: per_step
-    tmp = trim(dir)//'/.run.json.tmp'
-    final = trim(dir)//'/run.json'
-    per_step = 0
-    if (steps_done > 0) per_step = wall/real(steps_done, dp)
-    open(newunit=u, file=tmp, status='replace', action='write', iostat=ios)
-    if (ios /= 0) then
-      call set_error(st, exit_io, tmp//': cannot write run metadata')
-      return
-    end if
-    write(u, '(a)') '{'
-    write(u, '(a)') '  "program": "magbed",'
-    write(u, '(a)') '  "version": "0.1.0",'
-    write(u, '(a)') '  "compiler": "'//esc(compiler_id())//'",'
-    write(u, '(a)') '  "scene": "'//esc(trim(scene_path))//'",'
-    write(u, '(a)') '  "status": "'//esc(trim(status))//'",'
-    write(u, '(a,i0,a)') '  "exit_code": ', code, ','
-    write(u, '(a)') '  "message": "'//esc(trim(message))//'",'
-    write(u, '(a,i0,a)') '  "n_particles": ', n, ','
-    write(u, '(a,i0,a)') '  "steps_done": ', steps_done, ','
-    write(u, '(a,i0,a)') '  "steps_total": ', steps_total, ','
-    write(u, '(a,'//rfmt//',a)') '  "t_reached": ', t_now, ','
-    write(u, '(a,'//rfmt//',a)') '  "wall_time_s": ', wall, ','
-    write(u, '(a,'//rfmt//',a)') '  "wall_time_per_step_s": ', per_step, ','
-    write(u, '(a,i0,a)') '  "list_builds": ', builds, ','
-    write(u, '(a,i0,a)') '  "pairs_per_step": ', pairs, ','
-    write(u, '(a,i0,a)') '  "pair_evaluations": ', evaluated, ','
-    write(u, '(a,i0,a)') '  "threads": ', n_threads(), ','
-    write(u, '(a)') '  "units": {'
-    write(u, '(a,'//rfmt//',a)') '    "length_m": ', m%length_unit, ','
-    write(u, '(a,'//rfmt//',a)') '    "time_s": ', m%time_unit, ','
-    write(u, '(a,'//rfmt//',a)') '    "mass_kg": ', m%mass_unit, ','
-    write(u, '(a,'//rfmt//',a)') '    "force_N": ', m%force_unit, ','
-    write(u, '(a,'//rfmt//')') '    "moment_Am2": ', m%moment_unit
-    write(u, '(a)') '  },'
-    write(u, '(a)') '  "groups": {'
-    write(u, '(a,'//rfmt//',a)') '    "F": ', m%big_f, ','
-    write(u, '(a,'//rfmt//')') '    "G": ', m%big_g
-    write(u, '(a)') '  }'
-    write(u, '(a)') '}'
-    close(u)
-    call rename_into_place(tmp, final, st)
-  contains
-    function esc(s) result(r)
-      character(len=*), intent(in) :: s
-      character(len=:), allocatable :: r
-      integer :: i
-      r = ''
-      do i = 1, len(s)
-        select case (s(i:i))
-        case ('"'); r = r//'\"'
-        case ('\'); r = r//'\\'
-        case default
-          if (iachar(s(i:i)) < 32) then
-            r = r//' '
-          else
-            r = r//s(i:i)
-          end if
-        end select
-      end do
-    end function esc
-  end subroutine write_run_json
-
-  !> Atomic replacement of `final` by the complete file `tmp` (POSIX rename).
-  subroutine rename_into_place(tmp, final, st)
-    character(len=*), intent(in) :: tmp, final
-    type(status_t), intent(inout) :: st
-    if (c_rename(tmp//c_null_char, final//c_null_char) /= 0) &
-         call set_error(st, exit_io, final//': cannot rename into place')
-  end subroutine rename_into_place
-
-  integer function n_threads()
-    !$ use omp_lib, only: omp_get_max_threads
-    n_threads = 1
-    !$ n_threads = omp_get_max_threads()
-  end function n_threads
-
-  function compiler_id() result(s)
-    use, intrinsic :: iso_fortran_env, only: compiler_version
-    character(len=:), allocatable :: s
-    s = compiler_version()
-  end function compiler_id
 
 end module output

@@ -43,7 +43,6 @@ module oscillator
     ! &output (cadences in steps, 0 = file off)
     integer(i8) :: trajectory_every = 10
     integer(i8) :: energy_every = 10
-    integer(i8) :: checkpoint_every = 0
     ! state
     real(dp), allocatable :: x(:), v(:), x0(:), v0(:)
     integer(i8) :: step = 0
@@ -62,19 +61,19 @@ contains
     type(status_t), intent(inout) :: st
     character(len=kind_len) :: kind
     character(len=128) :: title
-    integer(i8) :: n, seed, trajectory_every, energy_every, checkpoint_every, progress_every
+    integer(i8) :: n, seed, trajectory_every, energy_every, checkpoint_every
     real(dp) :: omega, zeta, amplitude, dt, t_end
     character(len=name_len) :: integrator
     integer :: u, ios
     character(len=msg_len) :: iom
     namelist /scene/ kind, title
     namelist /oscillator/ n, omega, zeta, amplitude, seed, integrator, dt, t_end
-    namelist /output/ trajectory_every, energy_every, checkpoint_every, progress_every
+    namelist /output/ trajectory_every, energy_every, checkpoint_every
     kind = self%kind; title = self%title
     n = self%n; omega = self%omega; zeta = self%zeta; amplitude = self%amplitude
     seed = self%seed; integrator = self%integrator; dt = self%dt; t_end = self%t_end
     trajectory_every = self%trajectory_every; energy_every = self%energy_every
-    checkpoint_every = self%checkpoint_every; progress_every = 0
+    checkpoint_every = self%checkpoint_every
     open(newunit=u, file=path, status='old', action='read', iostat=ios, iomsg=iom)
     if (ios /= 0) then
       call set_error(st, exit_io, trim(path)//': cannot open scene file: '//trim(iom))

@@ -49,8 +49,10 @@ def max_error(run_dir: str | Path, omega: float, zeta: float = 0.0) -> float:
     return float(np.max(np.abs(tr["x"].to_numpy() - x)))
 
 
-def save_run_plots(run_dir: str | Path, out: str | Path | None = None) -> list[Path]:
-    """x(t) of the first oscillators and E(t): ``plots/trajectory.png``, ``plots/energy.png``."""
+def save_run_plots(run_dir: str | Path, out: str | Path | None = None,
+                   full: bool = False) -> list[Path]:
+    """x(t) of the first oscillators and E(t): ``plots/trajectory.png``, ``plots/energy.png``
+    (``full`` adds nothing for this kind)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -85,8 +87,27 @@ def save_run_plots(run_dir: str | Path, out: str | Path | None = None) -> list[P
     return written
 
 
-def default_metrics(run_dir: str | Path) -> dict[str, float]:
-    """Sweep results of one run: final total energy and its drift relative to the start."""
-    en = energy(run_dir)
+def write_tables(run_dir: str | Path, out: str | Path | None = None) -> list[Path]:
+    """``analysis/error.csv``: max |x - x_exact| [L] of the recorded trajectory."""
+    import f90nml
+
+    run_dir = Path(run_dir)
+    out = Path(out) if out is not None else run_dir / "analysis"
+    out.mkdir(parents=True, exist_ok=True)
+    osc = f90nml.read(str(run_dir / "scene.nml"))["oscillator"]
+    err = max_error(run_dir, float(osc["omega"]), float(osc["zeta"]))
+    path = out / "error.csv"
+    pd.DataFrame({"max_abs_error_L": [err]}).to_csv(path, index=False)
+    return [path]
+
+
+#: columns of :func:`default_metrics`
+METRIC_KEYS = ("E_final", "E_rel_change")
+
+
+def default_metrics(run: object) -> dict[str, float]:
+    """Sweep results of one run (a :class:`pyorch.run.Run`): final total energy
+    [L^2/tau^2] and its change relative to the start."""
+    en = energy(getattr(run, "dir", run))
     e0, e1 = float(en["E_total"].iloc[0]), float(en["E_total"].iloc[-1])
     return {"E_final": e1, "E_rel_change": (e1 - e0) / e0 if e0 else float("nan")}

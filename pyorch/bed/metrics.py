@@ -1,0 +1,60 @@
+"""Default per-point results of a bed sweep (:mod:`pyorch.sweep`): F_max, its height, D_hat and
+the Voronoi/Psi6 order at maximum compression. Units: forces [m1 g], lengths [D1]."""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import pandas as pd
+
+from pyorch.bed import METRIC_KEYS
+
+
+def _nan_metrics() -> dict[str, float]:
+    return {k: math.nan for k in METRIC_KEYS}
+
+
+def _nearest_row(df: pd.DataFrame, step: int) -> pd.Series:
+    """Row of ``df`` whose ``step`` is nearest to ``step``."""
+    return df.loc[(df["step"] - step).abs().idxmin()]
+
+
+def _frame_metrics_near(run: Any, step: int) -> dict[str, float]:
+    """n5, n6, n7, Psi6 of the particle frame nearest to ``step`` (NaN without frames)."""
+    from pyorch.bed.analysis import frame_metrics
+    from pyorch.io import frame_at
+
+    if not (run.dir / "particles.dat").is_file():
+        return {}
+    frames = run.frames()
+    if frames.empty:
+        return {}
+    steps = pd.Series(frames["step"].unique())
+    nearest = int(steps.iloc[(steps - step).abs().idxmin()])
+    fm = frame_metrics(frame_at(frames, nearest))
+    return {k: float(fm[k]) for k in ("n5", "n6", "n7", "Psi6")}
+
+
+def summary_metrics(run: Any) -> dict[str, float]:
+    """Default per-point metrics of a completed run (NaN when not available).
+
+    F_max: maximum piston force over the compression phase (phase 2) [m1 g];
+    H_at_F_max: piston height at that step [D1]; D_hat: mean inter-particle
+    distance [D1] at the mean_distance.dat row nearest to the F_max step;
+    n5, n6, n7 (Voronoi polygon fractions) and Psi6 of the particle frame
+    nearest to the F_max step (taken as maximum compression).
+    """
+    out = _nan_metrics()
+    piston = run.piston()
+    comp = piston[piston["phase"] == 2]
+    if comp.empty:
+        return out
+    peak = comp.loc[comp["F_piston"].idxmax()]
+    step = int(peak["step"])
+    out["F_max"], out["H_at_F_max"] = float(peak["F_piston"]), float(peak["H"])
+    if (run.dir / "mean_distance.dat").is_file():
+        md = run.mean_distance()
+        if not md.empty:
+            out["D_hat"] = float(_nearest_row(md, step)["D_hat"])
+    out.update(_frame_metrics_near(run, step))
+    return out
