@@ -6,12 +6,13 @@ module methods
   use scene_input, only: kind_len, read_kind
   use bed_method, only: bed_t
   use oscillator, only: oscillator_t
+  use dsmc_rods, only: rods_t
   implicit none
   private
 
   public :: method_for_scene, kind_names
 
-  character(len=*), parameter :: kind_names = "'magnet_bed' | 'oscillator'"
+  character(len=*), parameter :: kind_names = "'magnet_bed' | 'oscillator' | 'rods'"
 
 contains
 
@@ -28,6 +29,8 @@ contains
       allocate(bed_t :: m)
     case ('oscillator')
       allocate(oscillator_t :: m)
+    case ('rods')
+      allocate(rods_t :: m)
     case default
       call set_error(st, exit_bad_input, trim(path)//": &scene kind = '"//trim(kind)// &
            "': allowed "//kind_names)

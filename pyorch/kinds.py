@@ -40,6 +40,10 @@ KINDS: dict[str, Kind] = {
         "oscillator", "oscillator", ("scene", "oscillator", "output"),
         "length L and time tau of the user's choice (omega in rad/tau), unit mass",
         "pyorch.oscillator", "independent damped harmonic oscillators (validation kind)"),
+    "rods": Kind(
+        "rods", "dsmc", ("scene", "rods", "collisions", "mean_field", "output"),
+        "mass m (a sample's), length L (a rod's), time t0 of the scene; energies m L^2/t0^2",
+        "pyorch.rods", "space-homogeneous DSMC of rods of vanishing girth (seed 001)"),
 }
 
 _KIND_RE = re.compile(r"""^\s*kind\s*=\s*['"]([^'"]*)['"]""", re.I | re.M)

@@ -116,14 +116,17 @@ def test_relaxation_to_equipartition(tmp_path: Path) -> None:
 
 
 def test_h_theorem(tmp_path: Path) -> None:
-    """Test 1: the H estimate of (v_x, v_y, omega) never rises above its running minimum by
-    more than 4 of its own equilibrium fluctuations."""
-    out = _run(tmp_path, "h", **{"rods.n": 40000, "rods.t_end": 20.0, "rods.dt": 0.1,
-                                 "rods.inertia_model": "thin_rod", "output.history_every": 5})
+    """Test 1: the H estimate of (v_x, v_y, omega), averaged over windows of 5 rows, never
+    rises by more than 4 standard deviations of its window-to-window noise (measured on the
+    equilibrated last third), while it falls by many of them overall."""
+    out = _run(tmp_path, "h", **{"rods.n": 40000, "rods.t_end": 30.0, "rods.dt": 0.1,
+                                 "rods.inertia_model": "thin_rod", "output.history_every": 2})
     hh = rods.history(out)["H"].to_numpy()
-    noise = np.std(hh[-len(hh) // 3:])
-    assert hh[0] - hh[-1] > 20 * noise
-    assert np.max(hh - np.minimum.accumulate(hh)) < 4 * noise + 1e-12
+    w = hh[: len(hh) // 5 * 5].reshape(-1, 5).mean(axis=1)
+    d = np.diff(w)
+    noise = np.std(d[-len(d) // 3:])
+    assert w[0] - w[-1] > 50 * noise
+    assert d.max() < 4 * noise, (d.max(), noise)
 
 
 def test_bkw_fourth_moment(tmp_path: Path) -> None:
@@ -206,6 +209,6 @@ def test_bad_input_names_key_and_range(tmp_path: Path, key: str, value: object,
 
 def test_dt_above_tau_names_tau(tmp_path: Path) -> None:
     sc = Scene.read(TEST1).with_overrides({"rods.dt": 0.5, "collisions.tau": 0.25})
-    with pytest.raises(SceneError, match=r"&rods dt = 0\.5: allowed \(0, &collisions tau = "
-                                         r"2\.5e-001?1?\]"):
+    with pytest.raises(SceneError, match=r"&rods dt = 5\.E-001: allowed \(0, &collisions tau = "
+                                         r"2\.5E-001\] \(Nanbu-Babovsky"):
         run(sc, tmp_path / "bad", progress=False)

@@ -36,12 +36,12 @@ contains
     close(u)
     if (ios < 0) then
       call set_error(st, exit_bad_input, trim(path)//': no &scene group: a scene must name '// &
-           "its kind (&scene kind = 'magnet_bed' | 'oscillator' /)")
+           "its kind (&scene kind = 'magnet_bed' | 'oscillator' | 'rods' /)")
     else if (ios > 0) then
       call set_error(st, exit_bad_input, trim(path)//': &scene: cannot read group: '//trim(iom))
     else if (len_trim(kind) == 0) then
       call set_error(st, exit_bad_input, trim(path)//": &scene kind: missing (allowed: "// &
-           "'magnet_bed' | 'oscillator')")
+           "'magnet_bed' | 'oscillator' | 'rods')")
     end if
   end subroutine read_kind
 

@@ -55,7 +55,6 @@ module dsmc_rods
     type(field_t) :: field
     ! &output
     integer(i8) :: history_every = 10, histogram_every = 0, samples_every = 0
-    integer(i8) :: checkpoint_every = 0
     integer(i8) :: bins = 50, entropy_bins = 16
     real(dp) :: v_max = 4.0_dp, omega_max = 4.0_dp
     logical :: collision_audit = .false.
@@ -109,7 +108,8 @@ contains
     history_every = self%history_every; histogram_every = self%histogram_every
     samples_every = self%samples_every; checkpoint_every = self%checkpoint_every
     bins = self%bins; entropy_bins = self%entropy_bins; v_max = self%v_max
-    omega_max = self%omega_max; collision_audit = self%collision_audit; progress_every = 0
+    omega_max = self%omega_max; collision_audit = self%collision_audit
+    progress_every = self%progress_every
     open(newunit=u, file=path, status='old', action='read', iostat=ios, iomsg=iom)
     if (ios /= 0) then
       call set_error(st, exit_io, trim(path)//': cannot open scene file: '//trim(iom))
@@ -141,6 +141,7 @@ contains
     self%samples_every = samples_every; self%checkpoint_every = checkpoint_every
     self%bins = bins; self%entropy_bins = entropy_bins; self%v_max = v_max
     self%omega_max = omega_max; self%collision_audit = collision_audit
+    self%progress_every = progress_every
     call validate(self, path, fourier_modes, st)
     if (st%code /= 0) return
     self%field%modes = int(fourier_modes)
@@ -216,6 +217,7 @@ contains
     call check_int(path, 'output', 'histogram_every', self%histogram_every, 0_i8, max_steps, st)
     call check_int(path, 'output', 'samples_every', self%samples_every, 0_i8, max_steps, st)
     call check_int(path, 'output', 'checkpoint_every', self%checkpoint_every, 0_i8, max_steps, st)
+    call check_int(path, 'output', 'progress_every', self%progress_every, 0_i8, max_steps, st)
     call check_int(path, 'output', 'bins', self%bins, 2_i8, 100000_i8, st)
     call check_int(path, 'output', 'entropy_bins', self%entropy_bins, 2_i8, 128_i8, st)
     call check_real(path, 'output', 'v_max', self%v_max, 0.0_dp, 1.0e6_dp, .false., st)
@@ -340,6 +342,7 @@ contains
     call put_int(u, 'histogram_every', self%histogram_every, 'steps (0 = off)')
     call put_int(u, 'samples_every', self%samples_every, 'steps (0 = off)')
     call put_int(u, 'checkpoint_every', self%checkpoint_every, 'steps (0 = none)')
+    call put_int(u, 'progress_every', self%progress_every, 'steps (0 = about 200 lines)')
     call put_int(u, 'bins', self%bins, '')
     call put_int(u, 'entropy_bins', self%entropy_bins, 'per axis of (vx, vy, omega)')
     call put_real(u, 'v_max', self%v_max, 'L/t0')

@@ -244,10 +244,12 @@ def steady_state(run_dir: str | Path) -> dict[str, float]:
 
 
 # ----------------------------------------------------------------------------- figures
-def save_run_plots(run_dir: str | Path, out: str | Path | None = None) -> list[Path]:
+def save_run_plots(run_dir: str | Path, out: str | Path | None = None,
+                   full: bool = False) -> list[Path]:
     """The slides' figures: distributions of v_x, v_y, |v|, theta, omega - initial (grey dashed),
     numerical at the end (black circles), exact steady state (red) - ``plots/distributions.png``,
-    and the history (temperatures, energy, order parameters, H) ``plots/history.png``."""
+    and the history (temperatures, energy, order parameters, H) ``plots/history.png``
+    (``full`` adds nothing for this kind)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -328,11 +330,36 @@ def save_order_sweep(results: pd.DataFrame, out: str | Path) -> Path:
     return out
 
 
-def default_metrics(run_dir: str | Path) -> dict[str, float]:
-    """Sweep results of one run: final T, S1, S2, coupling g = alpha L^2/T, energy drift."""
+def write_tables(run_dir: str | Path, out: str | Path | None = None) -> list[Path]:
+    """``analysis/steady_state.csv``: the final moments beside the exact steady state (T from
+    the initial energy and momentum), with their differences."""
+    run_dir = Path(run_dir)
+    out = Path(out) if out is not None else run_dir / "analysis"
+    out.mkdir(parents=True, exist_ok=True)
+    h = history(run_dir)
+    ss = steady_state(run_dir)
+    last = h.iloc[-1]
+    rows = [("T_trans", float(last["T_trans"]), ss["T"]), ("T_rot", float(last["T_rot"]), ss["T"]),
+            ("E_total", float(last["E_total"]), float(h["E_total"].iloc[0]))]
+    df = pd.DataFrame(rows, columns=["quantity", "dsmc", "exact"])
+    df["difference"] = df["dsmc"] - df["exact"]
+    path = out / "steady_state.csv"
+    df.to_csv(path, index=False)
+    return [path]
+
+
+#: columns of :func:`default_metrics`
+METRIC_KEYS = ("T", "S1", "S2", "g", "E_rel_change")
+
+
+def default_metrics(run: object) -> dict[str, float]:
+    """Sweep results of one run (a :class:`pyorch.run.Run` or its directory): T [E], S1, S2 [1]
+    averaged over the last fifth of the history, the coupling g = alpha L^2/T [1] and the
+    relative change of the total energy."""
+    run_dir = Path(getattr(run, "dir", run))
     h = history(run_dir)
     p = params(run_dir)
-    last = h.iloc[-max(1, len(h) // 5):]   # mean over the last fifth of the history
+    last = h.iloc[-max(1, len(h) // 5):]
     temp = float(last["T"].mean())
     e0, e1 = float(h["E_total"].iloc[0]), float(h["E_total"].iloc[-1])
     return {"T": temp, "S1": float(last["S1"].mean()), "S2": float(last["S2"].mean()),
