@@ -212,3 +212,25 @@ def test_dt_above_tau_names_tau(tmp_path: Path) -> None:
     with pytest.raises(SceneError, match=r"&rods dt = 5\.E-001: allowed \(0, &collisions tau = "
                                          r"2\.5E-001\] \(Nanbu-Babovsky"):
         run(sc, tmp_path / "bad", progress=False)
+
+
+@pytest.mark.parametrize("alpha, ordered", [(1.5, False), (4.0, True)])
+def test_onsager_isotropic_below_and_ordered_above_threshold(tmp_path: Path, alpha: float,
+                                                             ordered: bool) -> None:
+    """Onsager's |sin| mean field: isotropic (S2 at the noise level 1/sqrt(N)) for
+    alpha L^2/T below the linear-stability threshold 3 pi/2, nematic above it with S2 equal to
+    the self-consistent mean-field equilibrium at the measured T."""
+    n = 10000
+    out = _run(tmp_path, f"ons{alpha}", ROOT / "runs" / "rods_test4_onsager.nml", **{
+        "rods.n": n, "rods.v_init": "maxwellian", "rods.v_shift": 0.0, "rods.v_spread": 0.7071,
+        "rods.omega_spread": 0.7071, "rods.t_end": 60.0, "rods.dt": 0.1,
+        "mean_field.alpha": alpha, "mean_field.fourier_modes": 16,
+        "output.histogram_every": 0, "output.history_every": 10})
+    m = rods.default_metrics(out)
+    if ordered:
+        assert m["g"] > rods.ONSAGER_THRESHOLD
+        assert abs(m["S2"] - rods.onsager_order(m["g"])) < 0.05
+        assert m["S2"] > 0.3
+    else:
+        assert m["g"] < rods.ONSAGER_THRESHOLD
+        assert m["S2"] < 5 / np.sqrt(n)
