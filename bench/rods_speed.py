@@ -10,11 +10,12 @@ Times are the engine process's CPU time (getrusage of the child) - on a shared m
 the wall time also counts other jobs - over the whole run (initial sampling, step-0
 checkpoint, steps); "per step" subtracts a 1-step run of the same scene.
 * rods_speed.csv: particle-steps/s of Test 1 (free transport + elastic rod collisions,
-  dt/tau = 0.05) and of Test 4 (Onsager, Fourier form, K modes) at N = 1e6; the Onsager
+  dt/tau = 0.05) and of Test 4 (Onsager, Fourier form with K modes, histogram form with M
+  grid points) at N = 1e6; the Onsager
   field's cost per step beside the collisions' (Test 1 minus a collisionless run).
-* rods_onsager_force.csv: one transport step from an ordered state (theta ~ N(0.3, 0.6^2),
+* rods_onsager_force.csv (K_or_M = Fourier modes K or histogram grid points M): one transport step from an ordered state (theta ~ N(0.3, 0.6^2),
   omega = 0, collisions off): the force F = (omega^1 - omega^0)/dt of the Fourier form with
-  K modes against the exact pair sum at N = 4000 (max and RMS relative error), with the CPU
+  K modes and of the histogram form with M grid points against the exact pair sum at N = 4000 (max and RMS relative error), with the CPU
   time per step of each form at that N.
 """
 from __future__ import annotations
@@ -71,6 +72,11 @@ def speed(tmp: Path) -> pd.DataFrame:
         s = per_step(t4, {"rods.n": n, "mean_field.fourier_modes": k}, 21, tmp, f"ons{k}")
         rows.append({"scene": f"test4 onsager fourier K={k}", "N": n, "cpu_per_step_s": s,
                      "particle_steps_per_s": n / s})
+    for m in [256, 1024]:
+        s = per_step(t4, {"rods.n": n, "mean_field.onsager_force": "histogram",
+                          "mean_field.onsager_bins": m}, 21, tmp, f"onh{m}")
+        rows.append({"scene": f"test4 onsager histogram M={m}", "N": n, "cpu_per_step_s": s,
+                     "particle_steps_per_s": n / s})
     df = pd.DataFrame(rows)
     df["collisions_part_s"] = s_coll - s_free
     df["meanfield_part_s"] = df["cpu_per_step_s"] - s_coll
@@ -78,12 +84,13 @@ def speed(tmp: Path) -> pd.DataFrame:
     return df
 
 
-def force(theta_scene: Scene, tmp: Path, tag: str) -> tuple[np.ndarray, float]:
+def force(theta_scene: Scene, tmp: Path, tag: str) -> np.ndarray:
+    """Torque per inertia F [rad/t0^2] of every sample after one step of dt = 1e-3 from omega = 0."""
     out = tmp / tag
     run(theta_scene, out, progress=False, threads=1)
     s = rods.samples(out)
     last = s[s["step"] == s["step"].max()].sort_values("id")
-    return last["omega"].to_numpy() / 1e-3, 0.0
+    return last["omega"].to_numpy() / 1e-3
 
 
 def onsager_force(tmp: Path) -> pd.DataFrame:
@@ -93,7 +100,7 @@ def onsager_force(tmp: Path) -> pd.DataFrame:
                    "rods.theta_init": "gaussian", "rods.theta0": 0.3, "rods.theta_spread": 0.6,
                    "rods.omega_spread": 0.0, "rods.dt": 1e-3, "rods.t_end": 1e-3,
                    "collisions.enabled": False, "output.samples_every": 10**9}
-    ref, _ = force(base.with_overrides({**common_over, "mean_field.onsager_force": "exact"}),
+    ref = force(base.with_overrides({**common_over, "mean_field.onsager_force": "exact"}),
                    tmp, "exact")
     t4 = ROOT / "runs/rods_test4_onsager.nml"
     timing = {**common_over, "output.samples_every": 0, "rods.dt": 0.05,
@@ -104,14 +111,23 @@ def onsager_force(tmp: Path) -> pd.DataFrame:
                                         21, tmp, "tex")}]
     scale = np.max(np.abs(ref))
     for k in [2, 4, 8, 16, 32, 64, 128]:
-        f, _ = force(base.with_overrides({**common_over, "mean_field.onsager_force": "fourier",
+        f = force(base.with_overrides({**common_over, "mean_field.onsager_force": "fourier",
                                           "mean_field.fourier_modes": k}), tmp, f"f{k}")
         rows.append({"form": "fourier", "K": k,
                      "max_rel_err": float(np.max(np.abs(f - ref)) / scale),
                      "rms_rel_err": float(np.sqrt(np.mean((f - ref) ** 2)) / scale),
                      "cpu_per_step_s": per_step(t4, {**timing, "mean_field.fourier_modes": k},
                                                 21, tmp, f"tf{k}")})
-    return pd.DataFrame(rows)
+    for m in [64, 256, 1024, 4096]:
+        f = force(base.with_overrides({**common_over, "mean_field.onsager_force": "histogram",
+                                       "mean_field.onsager_bins": m}), tmp, f"h{m}")
+        rows.append({"form": "histogram", "K": m,
+                     "max_rel_err": float(np.max(np.abs(f - ref)) / scale),
+                     "rms_rel_err": float(np.sqrt(np.mean((f - ref) ** 2)) / scale),
+                     "cpu_per_step_s": per_step(t4, {**timing, "mean_field.onsager_force":
+                                                     "histogram", "mean_field.onsager_bins": m},
+                                                21, tmp, f"th{m}")})
+    return pd.DataFrame(rows).rename(columns={"K": "K_or_M"})
 
 
 def main() -> None:

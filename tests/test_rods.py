@@ -195,6 +195,8 @@ def test_resume_bit_identical(tmp_path: Path) -> None:
     ("mean_field.alpha", float("nan"), "&mean_field alpha"),
     ("mean_field.potential", "'harmonic'", "&mean_field potential"),
     ("rods.inertia_model", "'sphere'", "&rods inertia_model"),
+    ("mean_field.onsager_force", "'fft'", "&mean_field onsager_force"),
+    ("mean_field.onsager_bins", 4, "&mean_field onsager_bins"),
 ])
 def test_bad_input_names_key_and_range(tmp_path: Path, key: str, value: object,
                                        needle: str) -> None:
@@ -214,17 +216,20 @@ def test_dt_above_tau_names_tau(tmp_path: Path) -> None:
         run(sc, tmp_path / "bad", progress=False)
 
 
-@pytest.mark.parametrize("alpha, ordered", [(1.5, False), (4.0, True)])
+@pytest.mark.parametrize("alpha, ordered, form", [(1.5, False, "fourier"),
+                                                  (4.0, True, "fourier"),
+                                                  (4.0, True, "histogram")])
 def test_onsager_isotropic_below_and_ordered_above_threshold(tmp_path: Path, alpha: float,
-                                                             ordered: bool) -> None:
+                                                             ordered: bool, form: str) -> None:
     """Onsager's |sin| mean field: isotropic (S2 at the noise level 1/sqrt(N)) for
     alpha L^2/T below the linear-stability threshold 3 pi/2, nematic above it with S2 equal to
     the self-consistent mean-field equilibrium at the measured T."""
     n = 10000
-    out = _run(tmp_path, f"ons{alpha}", ROOT / "runs" / "rods_test4_onsager.nml", **{
+    out = _run(tmp_path, f"ons{alpha}{form}", ROOT / "runs" / "rods_test4_onsager.nml", **{
         "rods.n": n, "rods.v_init": "maxwellian", "rods.v_shift": 0.0, "rods.v_spread": 0.7071,
         "rods.omega_spread": 0.7071, "rods.t_end": 60.0, "rods.dt": 0.1,
         "mean_field.alpha": alpha, "mean_field.fourier_modes": 16,
+        "mean_field.onsager_force": form,
         "output.histogram_every": 0, "output.history_every": 10})
     m = rods.default_metrics(out)
     if ordered:

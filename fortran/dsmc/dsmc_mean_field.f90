@@ -32,7 +32,13 @@
 !>     truncated at k = K, so U = alpha L^2 sum_k a_k (C_k cos 2k theta +
 !>     S_k sin 2k theta), C_k, S_k = <cos 2k theta_j>, <sin 2k theta_j>:
 !>     O(N K). Its force coefficients fall as 1/k (the kink of |sin|), the
-!>     truncation error is measured in bench/rods_onsager.py.
+!>     truncation error is measured in bench/rods_speed.py;
+!>   - 'histogram': phi = theta mod pi (|sin| is pi-periodic) deposited on M grid
+!>     points of [0, pi) with cloud-in-cell weights w_j, the torque tabulated
+!>     exactly against them, F(phi_i) = -(alpha L^2/I) sum_j w_j sign(sin(phi_i -
+!>     phi_j)) cos(phi_i - phi_j) (O(M^2), independent of N), and interpolated
+!>     linearly at each sample: O(N) without trigonometric calls. Its error is
+!>     O(pi/M) (the jump of the kernel's derivative at zero lag).
 !>   Linear stability of the isotropic state: with f = (1 + eps cos 2theta)/(2pi)
 !>   the field is U = const - eps (2 alpha L^2/(3 pi)) cos 2theta, and
 !>   f ~ exp(-U/T) feeds back eps (2 alpha L^2/(3 pi T)): the isotropic state
@@ -50,13 +56,14 @@ module dsmc_mean_field
 
   type :: field_t
     character(len=16) :: potential = 'none'   !< none | quadratic | dipole | onsager
-    character(len=16) :: force = 'fourier'    !< Onsager: exact | fourier
+    character(len=16) :: force = 'fourier'    !< Onsager: exact | fourier | histogram
     real(dp) :: alpha = 0.0_dp                !< strength [m L^2/tau^2]
     real(dp) :: beta = 0.0_dp                 !< damping of 'quadratic' [1/tau]
     real(dp) :: theta_hat = 0.0_dp            !< alignment direction [rad]
     real(dp) :: inertia = 1.0_dp              !< I [m L^2]
     real(dp) :: length = 1.0_dp               !< L [L]
     integer :: modes = 16                     !< Fourier modes K of 'fourier'
+    integer :: bins = 512                     !< grid points M of 'histogram'
   end type field_t
 
 contains
@@ -125,11 +132,14 @@ contains
       omega = omega - dt*(f%alpha/f%inertia)*cos(theta - f%theta_hat)
       theta = theta + dt*omega
     case ('onsager')
-      if (trim(f%force) == 'exact') then
+      select case (trim(f%force))
+      case ('exact')
         call kick_onsager_exact(f, dt, theta, omega)
-      else
+      case ('histogram')
+        call kick_onsager_histogram(f, dt, theta, omega)
+      case default
         call kick_onsager_fourier(f, dt, theta, omega)
-      end if
+      end select
       theta = theta + dt*omega
     end select
   end subroutine transport
@@ -199,6 +209,65 @@ contains
     end do
   end subroutine kick_onsager_fourier
 
+  !> Cloud-in-cell weights of phi = theta mod pi on the M points phi_i = (i-1) pi/M
+  !> (periodic), normalised to sum 1; cell(k) and frac(k) locate each sample.
+  subroutine deposit(theta, m, w, cell, frac)
+    real(dp), intent(in) :: theta(:)
+    integer, intent(in) :: m
+    real(dp), intent(out) :: w(m)
+    integer, intent(out) :: cell(:)
+    real(dp), intent(out) :: frac(:)
+    real(dp) :: x
+    integer(i8) :: k
+    w = 0.0_dp
+    do k = 1, size(theta, kind=i8)
+      x = theta(k)/pi
+      x = (x - floor(x))*real(m, dp)          ! in [0, m]
+      cell(k) = min(int(x), m - 1)
+      frac(k) = x - real(cell(k), dp)
+    end do
+    do k = 1, size(theta, kind=i8)
+      w(cell(k) + 1) = w(cell(k) + 1) + (1.0_dp - frac(k))
+      w(mod(cell(k) + 1, m) + 1) = w(mod(cell(k) + 1, m) + 1) + frac(k)
+    end do
+    w = w/real(size(theta), dp)
+  end subroutine deposit
+
+  !> omega += dt F with F tabulated on the grid against the deposited weights and
+  !> interpolated linearly (header, 'histogram').
+  subroutine kick_onsager_histogram(f, dt, theta, omega)
+    type(field_t), intent(in) :: f
+    real(dp), intent(in) :: dt
+    real(dp), intent(in) :: theta(:)
+    real(dp), intent(inout) :: omega(:)
+    real(dp) :: w(f%bins), tab(f%bins + 1), kern(0:f%bins - 1), g, lag
+    integer, allocatable :: cell(:)
+    real(dp), allocatable :: frac(:)
+    integer :: i, j, m
+    integer(i8) :: k
+    m = f%bins
+    allocate(cell(size(theta)), frac(size(theta)))
+    call deposit(theta, m, w, cell, frac)
+    ! d|sin x|/dx = sign(sin x) cos x at lag x = l pi/M, l = 0..M-1 (zero at l = 0)
+    kern(0) = 0.0_dp
+    do i = 1, m - 1
+      lag = real(i, dp)*pi/real(m, dp)
+      kern(i) = cos(lag)
+    end do
+    do i = 1, m
+      g = 0.0_dp
+      do j = 1, m
+        g = g + w(j)*kern(modulo(i - j, m))
+      end do
+      tab(i) = g
+    end do
+    tab(m + 1) = tab(1)
+    g = dt*f%alpha*f%length**2/f%inertia
+    do k = 1, size(theta, kind=i8)
+      omega(k) = omega(k) - g*((1.0_dp - frac(k))*tab(cell(k) + 1) + frac(k)*tab(cell(k) + 2))
+    end do
+  end subroutine kick_onsager_histogram
+
   !> Interaction energy per sample [m L^2/tau^2] of the same form as the force.
   function interaction_energy(f, theta) result(e)
     type(field_t), intent(in) :: f
@@ -215,7 +284,9 @@ contains
     case ('dipole')
       e = f%alpha*sum(sin(theta - f%theta_hat))/real(n, dp)
     case ('onsager')
-      if (trim(f%force) == 'exact') then
+      if (trim(f%force) == 'histogram') then
+        e = histogram_pair_mean(theta, f%bins)
+      else if (trim(f%force) == 'exact') then
         do i = 1, n
           do j = 1, n
             e = e + abs(sin(theta(i) - theta(j)))
@@ -233,5 +304,23 @@ contains
       e = 0.5_dp*f%alpha*f%length**2*e
     end select
   end function interaction_energy
+
+  !> <|sin(theta_i - theta_j)|> of the deposited weights (O(M^2)).
+  function histogram_pair_mean(theta, m) result(e)
+    real(dp), intent(in) :: theta(:)
+    integer, intent(in) :: m
+    real(dp) :: e, w(m)
+    integer, allocatable :: cell(:)
+    real(dp), allocatable :: frac(:)
+    integer :: i, j
+    allocate(cell(size(theta)), frac(size(theta)))
+    call deposit(theta, m, w, cell, frac)
+    e = 0.0_dp
+    do i = 1, m
+      do j = 1, m
+        e = e + w(i)*w(j)*abs(sin(real(i - j, dp)*pi/real(m, dp)))
+      end do
+    end do
+  end function histogram_pair_mean
 
 end module dsmc_mean_field

@@ -279,6 +279,7 @@ def save_run_plots(run_dir: str | Path, out: str | Path | None = None,
             ax.plot(b[x], b[f], "o", mfc="none", mec="k", ms=3.5, label=f"t = {b['t'][0]:g}")
             ax.plot(b[x], exact, "-", color="r", lw=1.2, label="exact steady")
             ax.set_xlabel(lab)
+            ax.set_ylim(bottom=0)
         np.atleast_1d(axes)[0].legend(frameon=False, fontsize=7)
         fig.suptitle(Scene.read(run_dir / "scene.nml").get("scene", "title"), fontsize=9)
         fig.tight_layout()
