@@ -210,28 +210,39 @@ contains
   end subroutine kick_onsager_fourier
 
   !> Cloud-in-cell weights of phi = theta mod pi on the M points phi_i = (i-1) pi/M
-  !> (periodic), normalised to sum 1; cell(k) and frac(k) locate each sample.
-  subroutine deposit(theta, m, w, cell, frac)
+  !> (periodic), normalised to sum 1.
+  subroutine deposit(theta, m, w)
     real(dp), intent(in) :: theta(:)
     integer, intent(in) :: m
     real(dp), intent(out) :: w(m)
-    integer, intent(out) :: cell(:)
-    real(dp), intent(out) :: frac(:)
-    real(dp) :: x
+    real(dp) :: wx(m + 1), fr
     integer(i8) :: k
-    w = 0.0_dp
+    integer :: c
+    wx = 0.0_dp
     do k = 1, size(theta, kind=i8)
-      x = theta(k)/pi
-      x = (x - floor(x))*real(m, dp)          ! in [0, m]
-      cell(k) = min(int(x), m - 1)
-      frac(k) = x - real(cell(k), dp)
+      call locate(theta(k), m, c, fr)
+      wx(c + 1) = wx(c + 1) + (1.0_dp - fr)
+      wx(c + 2) = wx(c + 2) + fr            ! slot m + 1 is grid point 1 (periodic)
     end do
-    do k = 1, size(theta, kind=i8)
-      w(cell(k) + 1) = w(cell(k) + 1) + (1.0_dp - frac(k))
-      w(mod(cell(k) + 1, m) + 1) = w(mod(cell(k) + 1, m) + 1) + frac(k)
-    end do
+    w = wx(1:m)
+    w(1) = w(1) + wx(m + 1)
     w = w/real(size(theta), dp)
   end subroutine deposit
+
+  !> Grid cell c in 0..m-1 and fraction fr in [0, 1) of phi = theta mod pi.
+  pure subroutine locate(theta, m, c, fr)
+    real(dp), intent(in) :: theta
+    integer, intent(in) :: m
+    integer, intent(out) :: c
+    real(dp), intent(out) :: fr
+    real(dp) :: y, x
+    y = theta*(1.0_dp/pi)
+    x = y - real(int(y, i8), dp)                 ! truncation: a plain conversion, no libm call
+    x = (x + merge(1.0_dp, 0.0_dp, x < 0.0_dp))*real(m, dp)   ! in [0, m], branch-free
+
+    c = min(int(x), m - 1)
+    fr = x - real(c, dp)
+  end subroutine locate
 
   !> omega += dt F with F tabulated on the grid against the deposited weights and
   !> interpolated linearly (header, 'histogram').
@@ -240,14 +251,11 @@ contains
     real(dp), intent(in) :: dt
     real(dp), intent(in) :: theta(:)
     real(dp), intent(inout) :: omega(:)
-    real(dp) :: w(f%bins), tab(f%bins + 1), kern(0:f%bins - 1), g, lag
-    integer, allocatable :: cell(:)
-    real(dp), allocatable :: frac(:)
-    integer :: i, j, m
+    real(dp) :: w(f%bins), tab(f%bins + 1), kern(0:f%bins - 1), g, lag, fr
+    integer :: i, j, m, c
     integer(i8) :: k
     m = f%bins
-    allocate(cell(size(theta)), frac(size(theta)))
-    call deposit(theta, m, w, cell, frac)
+    call deposit(theta, m, w)
     ! d|sin x|/dx = sign(sin x) cos x at lag x = l pi/M, l = 0..M-1 (zero at l = 0)
     kern(0) = 0.0_dp
     do i = 1, m - 1
@@ -264,7 +272,8 @@ contains
     tab(m + 1) = tab(1)
     g = dt*f%alpha*f%length**2/f%inertia
     do k = 1, size(theta, kind=i8)
-      omega(k) = omega(k) - g*((1.0_dp - frac(k))*tab(cell(k) + 1) + frac(k)*tab(cell(k) + 2))
+      call locate(theta(k), m, c, fr)
+      omega(k) = omega(k) - g*((1.0_dp - fr)*tab(c + 1) + fr*tab(c + 2))
     end do
   end subroutine kick_onsager_histogram
 
@@ -310,11 +319,8 @@ contains
     real(dp), intent(in) :: theta(:)
     integer, intent(in) :: m
     real(dp) :: e, w(m)
-    integer, allocatable :: cell(:)
-    real(dp), allocatable :: frac(:)
     integer :: i, j
-    allocate(cell(size(theta)), frac(size(theta)))
-    call deposit(theta, m, w, cell, frac)
+    call deposit(theta, m, w)
     e = 0.0_dp
     do i = 1, m
       do j = 1, m
