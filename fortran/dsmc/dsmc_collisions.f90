@@ -50,6 +50,10 @@
 !>   the measure and the energy: the product of Maxwellians in v and w with
 !>   one temperature (equipartition over 2 + 1 degrees of freedom) is a
 !>   stationary state of the collision step for every theta distribution.
+!> * translation-rotation exchange: averaging dE_rot = 2 J g_r + 2 J^2 A over
+!>   uncorrelated velocities and spins gives (4A/(m K^2)) (T_t - T_r) per
+!>   collision, so T_t - T_r decays at the rate (3/2) E_geometry[4A/(m K^2)]/tau
+!>   (pyorch.rods.exchange_coefficient; measured in tests/test_rods.py).
 !> Point particles (rotation off): arms and spins play no part, K = 2/m and n
 !> is uniform on the circle (Maxwell molecules in 2D: the BKW solution).
 module dsmc_collisions

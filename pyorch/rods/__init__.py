@@ -129,6 +129,30 @@ def quadratic_exact(t: ArrayLike, theta0: float, omega0: float, alpha: float, be
     return np.real(y) + theta_hat, np.real(w)
 
 
+def exchange_coefficient(m: float, inertia: float, length: float, grid: int = 400) -> float:
+    """c = E[4 A / (m K^2)] over the impact geometry of dsmc_collisions (contact abscissa s
+    uniform on the struck rod, striker arm (L/2) cos(theta_1 - theta_2), theta uniform),
+    A = (a^2 + a*^2)/I, K = 2/m + A [1].
+
+    Derivation: in an elastic collision the pair's rotational energy changes by
+    2 J g_r + 2 J^2 A with J = -(g_t + g_r)/K; averaging over independent velocities and spins
+    (<g_t^2> = 2 T_t/m, <g_r^2> = A T_r) gives (4 A/(m K^2)) (T_t - T_r) per collision. With
+    p = 2 floor(N dt/(2 tau))/N of the samples colliding per step and 2 + 1 degrees of freedom,
+    T_t - T_r shrinks by (1 - 3 p c/2) per step: the rate 3 c/(2 tau) as dt -> 0
+    (:func:`exchange_discrete`). It holds while v, omega and theta are uncorrelated (early
+    times); later the collisions correlate theta with v and the decay deviates slightly."""
+    s = (np.arange(grid) + 0.5) / grid - 0.5
+    d = 2 * np.pi * (np.arange(grid) + 0.5) / grid
+    ss, dd = np.meshgrid(s * length, d)
+    a = (ss**2 + (0.5 * length * np.cos(dd)) ** 2) / inertia
+    return float(np.mean(4 * a / (m * (2 / m + a) ** 2)))
+
+
+def exchange_discrete(steps: ArrayLike, p: float, c: float, d0: float) -> F64:
+    """T_trans - T_rot after n Babovsky steps from d0: d0 (1 - 3 p c/2)^n [E]."""
+    return d0 * (1.0 - 1.5 * p * c) ** np.asarray(steps, float)
+
+
 def gaussian(x: ArrayLike, mean: float, var: float) -> F64:
     """Normal density."""
     x = np.asarray(x, float)
