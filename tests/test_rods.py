@@ -208,6 +208,23 @@ def test_resume_bit_identical(tmp_path: Path) -> None:
         assert (full / name).read_bytes() == (part / name).read_bytes(), name
 
 
+def test_doors_byte_identical(tmp_path: Path) -> None:
+    """The executable and the f2py door write the same bytes (same RNG stream)."""
+    sc = Scene.read(TEST1).with_overrides({"rods.n": 2000, "rods.t_end": 2.0,
+                                           "output.checkpoint_every": 0})
+    run(sc, tmp_path / "exe", door="exe", progress=False)
+    run(sc, tmp_path / "f2py", door="f2py", progress=False)
+    for name in ("history.dat", "histograms.dat", "scene.nml"):
+        assert (tmp_path / "exe" / name).read_bytes() == (tmp_path / "f2py" / name).read_bytes()
+
+
+def test_plots_and_tables(tmp_path: Path) -> None:
+    out = _run(tmp_path, "p", **{"rods.n": 2000, "rods.t_end": 1.0})
+    paths = rods.save_run_plots(out) + rods.write_tables(out)
+    assert all(p.is_file() and p.stat().st_size > 0 for p in paths)
+    assert set(rods.default_metrics(type("R", (), {"dir": out})())) == set(rods.METRIC_KEYS)
+
+
 @pytest.mark.parametrize("key, value, needle", [
     ("rods.dt", 1.5, "&rods dt = 1.5"),            # dt > tau = 1: Nanbu-Babovsky refuses
     ("collisions.e_v", 1.2, "&collisions e_v"),

@@ -364,8 +364,10 @@ def write_tables(run_dir: str | Path, out: str | Path | None = None) -> list[Pat
     h = history(run_dir)
     ss = steady_state(run_dir)
     last = h.iloc[-1]
-    rows = [("T_trans", float(last["T_trans"]), ss["T"]), ("T_rot", float(last["T_rot"]), ss["T"]),
-            ("E_total", float(last["E_total"]), float(h["E_total"].iloc[0]))]
+    rows = [("T_trans", float(last["T_trans"]), ss["T"])]
+    if params(run_dir).rotation:
+        rows.append(("T_rot", float(last["T_rot"]), ss["T"]))
+    rows.append(("E_total", float(last["E_total"]), float(h["E_total"].iloc[0])))
     df = pd.DataFrame(rows, columns=["quantity", "dsmc", "exact"])
     df["difference"] = df["dsmc"] - df["exact"]
     path = out / "steady_state.csv"
