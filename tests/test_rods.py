@@ -276,3 +276,17 @@ def test_onsager_isotropic_below_and_ordered_above_threshold(tmp_path: Path, alp
     else:
         assert m["g"] < rods.ONSAGER_THRESHOLD
         assert m["S2"] < 5 / np.sqrt(n)
+
+
+def test_unstable_transport_is_a_clear_failure(tmp_path: Path) -> None:
+    """Semi-implicit Euler on the quadratic well is unstable for dt sqrt(alpha) > 2: the run ends
+    with the guard's message (exit 3) naming dt and the potential, and no NaN reaches a file."""
+    from pyorch import RunError
+
+    with pytest.raises(RunError, match=r"non-finite sample .*potential = quadratic"):
+        _run(tmp_path, "blow", **{"rods.n": 100, "rods.dt": 0.01, "rods.t_end": 50.0,
+                                  "collisions.enabled": False,
+                                  "mean_field.potential": "quadratic",
+                                  "mean_field.alpha": 1.0e6, "output.history_every": 1})
+    text = (tmp_path / "blow" / "history.dat").read_text().lower()
+    assert "nan" not in text and "infinity" not in text

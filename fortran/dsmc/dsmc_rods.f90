@@ -30,6 +30,7 @@ module dsmc_rods
 
   integer, parameter :: nlen = 16
   integer(i8), parameter :: max_steps = 4000000000000000000_i8
+  real(dp), parameter :: runaway_bound = 1.0e100_dp   !< guard on sum |state| (see advance)
 
   type, extends(method_t) :: rods_t
     ! &scene
@@ -473,12 +474,17 @@ contains
     call transport(self%field, self%dt, self%theta, self%omega)
     if (self%nc > 0) call collision_step(self)
     self%step = self%step + 1
-    if (.not. ieee_is_finite(sum(self%v) + sum(self%theta) + sum(self%omega))) then
-      ! a NaN or Inf propagates into the sum (a finite sum proves all finite); only an
-      ! overflow of the sum itself (|values| ~ 1e308) would be reported as well
-      call set_error(st, exit_numerical, 'rods: non-finite sample at step '// &
+    ! sum of |values|: NaN and Inf propagate into it, and below runaway_bound every value and
+    ! every square in the moments stays far from overflow (a row is never written with Inf/NaN)
+    if (.not. (sum(abs(self%v)) + sum(abs(self%theta)) + sum(abs(self%omega)) < runaway_bound)) then
+      call set_error(st, exit_numerical, 'rods: non-finite sample (or sum of |v|, |theta|, '// &
+           '|omega| above 1e100) at step '// &
            int_str(self%step)//' (dt = '//real_str(self%dt)//' t0, &mean_field potential = '// &
            trim(self%field%potential)//'): explicit transport unstable, reduce dt')
+    else if (trim(self%field%potential) == 'onsager') then
+      if (maxval(abs(self%theta)) >= 1.0e15_dp) call set_error(st, exit_numerical, &
+           'rods: |theta| above 1e15 rad at step '//int_str(self%step)// &
+           ': theta mod pi has no digits left for the Onsager field')
     end if
   end subroutine advance
 
