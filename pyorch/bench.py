@@ -9,7 +9,12 @@ reference (O(N^2), smallest dt) of
 
 * F_max   - piston force at maximum compression [m1 g] (relative error),
 * D_hat   - mean inter-particle distance at maximum compression [D1] (relative),
-* n6      - fraction of hexagonal Voronoi cells at maximum compression (absolute).
+* n6      - fraction of hexagonal Voronoi cells at maximum compression (absolute),
+
+and its cost in energy conservation, ``E_drift``: the same setting on the same
+bed made conservative (friction off, the piston a fixed wall, ``energy_probe_t``
+= 5 T) gives max |E_total(t) - E_total(0)| per particle [m1 g D1] (E_total with
+the all-pairs pair energy, so a truncated or frozen far field shows as drift).
 
 Errors are averaged over seeds (paired with the reference of the same seed).
 Because the bed is a chaotic many-body system, any perturbation (even
@@ -127,9 +132,43 @@ def measure(r: Run) -> dict[str, Any]:
     return out
 
 
+ENERGY_PROBE_T = 5.0
+"""Length of the conservative energy probe of every trade setting [T] (0 = no probe)."""
+
+
+def energy_probe_overrides(t_probe: float, dt: float) -> dict[str, Any]:
+    """The trade scene made conservative: friction off, the piston a fixed wall at h_start, run
+    for ``t_probe`` [T] with energy.dat about every 0.05 T and no other output."""
+    return {"physics.dry_friction": "none", "physics.viscous_gamma": 0.0,
+            "protocol.piston": "fixed", "protocol.t_end": float(t_probe),
+            "output.energy_every": max(1, int(round(0.05 / dt))), "output.piston_every": 0,
+            "output.frame_every": 0, "output.distance_every": 0, "output.checkpoint_every": 0}
+
+
+def energy_drift(energy: pd.DataFrame, n: int) -> float:
+    """max_t |E_total(t) - E_total(0)| / n [m1 g D1 per particle] of an energy.dat table."""
+    e = energy["E_total"].to_numpy(float)
+    return float(np.max(np.abs(e - e[0]))) / max(int(n), 1)
+
+
+def run_energy_probe(base: Scene, setting: Setting, seed: int, out_dir: Path, t_probe: float,
+                     threads: int = 1) -> dict[str, Any]:
+    """``E_drift`` of one (setting, seed) on the conservative probe (NaN if the probe fails)."""
+    name = f"{setting.label()}_seed{seed}_th{threads}"
+    ov = dict(setting.overrides(), **{"particles.seed": seed},
+              **energy_probe_overrides(t_probe, float(setting.d["dt"])))
+    try:
+        r = run(base.with_overrides(ov), out_dir / name, progress=False, threads=threads)
+        return {"E_drift": energy_drift(r.energy(), int(r.meta["n_particles"]))}
+    except Exception:  # noqa: BLE001 - a failed probe is a missing measurement, not a crash
+        return {"E_drift": float("nan")}
+
+
 def run_setting(base: Scene, setting: Setting, seed: int, out_dir: Path,
-                threads: int = 1) -> dict[str, Any]:
-    """Run one (setting, seed) and return its row (never raises on engine failure)."""
+                threads: int = 1, energy_dir: Path | None = None,
+                energy_probe_t: float = 0.0) -> dict[str, Any]:
+    """Run one (setting, seed) and return its row (never raises on engine failure); with
+    ``energy_probe_t`` > 0 also its conservative energy probe (runs in ``energy_dir``)."""
     name = f"{setting.label()}_seed{seed}_th{threads}"
     scene = base.with_overrides(dict(setting.overrides(), **{"particles.seed": seed}))
     row: dict[str, Any] = dict(setting.d, seed=seed, threads=threads, label=setting.label())
@@ -138,6 +177,9 @@ def run_setting(base: Scene, setting: Setting, seed: int, out_dir: Path,
         row.update(measure(r))
     except Exception as exc:  # a failed setting is a measured outcome (e.g. unstable dt)
         row.update(status=f"failed: {exc}")
+    if energy_probe_t > 0:
+        row.update(run_energy_probe(base, setting, seed, energy_dir or out_dir.parent / "energy",
+                                    energy_probe_t, threads))
     return row
 
 
@@ -160,6 +202,8 @@ def summarise(rows: pd.DataFrame) -> pd.DataFrame:
     agg = {"time_per_step_s": "mean", "pair_evals_per_s": "mean", "list_builds": "mean",
            "pairs_per_step": "mean", "err_F_max": "mean", "err_D_hat": "mean", "err_n6": "mean",
            "bias_F_max": "mean", "bias_D_hat": "mean", "bias_n6": "mean", "seed": "count"}
+    if "E_drift" in ok.columns:
+        agg["E_drift"] = "mean"
     groups = ok.groupby(["label", "threads"] + KNOBS, dropna=False)
     table = groups.agg(agg).reset_index()
     # standard error of the seed-averaged bias (seeds paired with the reference's)
@@ -177,8 +221,12 @@ def summarise(rows: pd.DataFrame) -> pd.DataFrame:
 
 def trade_study(base_path: Path, settings: Sequence[Setting], seeds: Iterable[int],
                 out_dir: Path, progress: bool = True, workers: int = 1,
-                reuse: pd.DataFrame | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
+                reuse: pd.DataFrame | None = None,
+                energy_probe_t: float = ENERGY_PROBE_T) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Run reference + settings for every seed; return (rows, summary).
+
+    Every (setting, seed) also gets its conservative energy probe of ``energy_probe_t`` [T]
+    (column ``E_drift``, runs in out_dir/energy; 0 switches it off).
 
     ``workers`` > 1 runs that many engine processes at once (one thread each):
     errors are unchanged, but wall times per step are then measured on a
@@ -204,11 +252,13 @@ def trade_study(base_path: Path, settings: Sequence[Setting], seeds: Iterable[in
         from concurrent.futures import ProcessPoolExecutor
 
         pool = ProcessPoolExecutor(max_workers=workers)
-        iterator = pool.map(run_setting, *zip(*[(base, st, seed, out_dir / "runs", threads)
+        iterator = pool.map(run_setting, *zip(*[(base, st, seed, out_dir / "runs", threads,
+                                                 out_dir / "energy", energy_probe_t)
                                                 for st, seed, threads in jobs]))
     else:
         pool = None
-        iterator = (run_setting(base, st, seed, out_dir / "runs", threads)
+        iterator = (run_setting(base, st, seed, out_dir / "runs", threads, out_dir / "energy",
+                                energy_probe_t)
                     for st, seed, threads in jobs)
     if progress:
         from tqdm import tqdm
@@ -364,7 +414,8 @@ def bias_study(base_path: Path, r_cuts: Sequence[float], seeds: Iterable[int], o
     settings = [Setting.of(r_cut=rc, truncation=tr, tail=tl)
                 for rc in r_cuts for tr, tl in (("plain", "none"), ("shifted_force", "none"),
                                                  ("plain", "frozen"))]
-    rows, _ = trade_study(base_path, settings, seeds, out_dir, progress, workers)
+    rows, _ = trade_study(base_path, settings, seeds, out_dir, progress, workers,
+                          energy_probe_t=0.0)
     return rows
 
 
@@ -403,13 +454,13 @@ def main_bench(args: Any) -> int:
         pareto_plot(table, out / "trade_pareto.png", noise)
         (out / "trade_meta.json").write_text(json.dumps({"noise_floor": noise, "seeds": seeds}))
         cols = ["label", "time_per_step_s", "pair_evals_per_s", "list_builds", "err_F_max",
-                "err_D_hat", "err_n6", "bias_F_max"]
+                "err_D_hat", "err_n6", "bias_F_max", "E_drift"]
         print(table[table["threads"].eq(1)][cols].to_string(index=False))
         print(f"noise floor (reference in velocity-Verlet form): {noise}")
     elif args.what == "seeds":
         reuse = pd.read_csv(args.reuse) if args.reuse else None
         rows, table = trade_study(Path(args.scene), seed_grid(), seeds, out / "seeds",
-                                  workers=args.workers, reuse=reuse)
+                                  workers=args.workers, reuse=reuse, energy_probe_t=0.0)
         rows.to_csv(out / "seeds_rows.csv", index=False)
         table.to_csv(out / "seeds.csv", index=False)
         seeds_plot(table, out / "seeds.png")

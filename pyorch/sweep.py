@@ -13,7 +13,7 @@ Spec file (TOML; relative paths are relative to the TOML file)::
     out = "../out/sweeps/speeds"      # sweep directory (default <base dir>/out/sweeps/<toml stem>)
     seeds = [1, 2, 3]                 # replicates -> particles.seed
     [grid]                            # cartesian product of these values
-    "protocol.piston_speed" = [0.02318, 0.0343, 0.1]
+    "protocol.piston_speed" = [0.02321773, 0.03435234, 0.1]
     [set]                             # fixed overrides for every point
     "protocol.t_relax" = 100.0
     [[points]]                        # explicit points (combined with [grid] as a product)

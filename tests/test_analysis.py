@@ -1,11 +1,12 @@
-"""Known-answer tests for pyorch.bed.analysis (lattices, Poisson points, synthetic data)."""
+"""Known-answer tests for pyorch.bed.analysis (lattices, Poisson points, synthetic data, brute force)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pandas as pd
 import pytest
-from astropy.stats import knuth_bin_width
+from scipy.spatial import Voronoi
+from scipy.special import gammaln
 
 from pyorch.bed import analysis as an
 
@@ -131,6 +132,45 @@ def test_poisson_points_match_known_voronoi_hexagon_fraction():
     assert m["Psi6"] < 0.03  # |<psi6>| ~ N^-1/2 for no orientational order
 
 
+def _cells_one_by_one(p: np.ndarray, tol: float) -> pd.DataFrame:
+    """Reference: the cell table computed cell by cell (the pre-vectorisation implementation)."""
+    vor = Voronoi(p)
+    box = (p[:, 0].min(), p[:, 0].max(), p[:, 1].min(), p[:, 1].max())
+    rows = []
+    for i in range(len(p)):
+        region = vor.regions[vor.point_region[i]]
+        if len(region) == 0 or -1 in region:
+            rows.append((-1, np.nan, np.nan, False))
+            continue
+        v = vor.vertices[region]
+        v = v[np.argsort(np.arctan2(v[:, 1] - p[i, 1], v[:, 0] - p[i, 0]))]
+        v = v[np.linalg.norm(np.roll(v, -1, axis=0) - v, axis=1) > tol]
+        if len(v) < 3:
+            rows.append((len(v), np.nan, np.nan, False))
+            continue
+        area = 0.5 * abs(np.dot(v[:, 0], np.roll(v[:, 1], -1)) - np.dot(v[:, 1], np.roll(v[:, 0], -1)))
+        r6 = an.hexagon_regularity(v) if len(v) == 6 else np.nan
+        inside = np.all((v[:, 0] >= box[0] - tol) & (v[:, 0] <= box[1] + tol)
+                        & (v[:, 1] >= box[2] - tol) & (v[:, 1] <= box[3] + tol))
+        rows.append((len(v), area, r6, bool(inside)))
+    return pd.DataFrame(rows, columns=["n_sides", "area", "R6", "interior"])
+
+
+@pytest.mark.parametrize("kind", ["poisson", "jittered", "square"])
+def test_vectorised_cells_equal_the_cell_by_cell_computation(kind):
+    rng = np.random.default_rng(12)
+    p = {"poisson": rng.random((3000, 2)) * [40.0, 60.0],
+         "jittered": triangular_lattice(25, 25) + 0.1 * rng.standard_normal((625, 2)),
+         "square": square_lattice() + 1e-9 * rng.standard_normal((400, 2))}[kind]
+    tol = 1e-6 * 0.3
+    ref = _cells_one_by_one(p, tol)
+    cells = an.voronoi_cells(p, tol=tol)
+    np.testing.assert_array_equal(cells["n_sides"].fillna(-1).to_numpy(int), ref["n_sides"])
+    np.testing.assert_array_equal(cells["interior"], ref["interior"])
+    for c in ("area", "R6"):  # the shoelace now runs about the generating point: round-off only
+        np.testing.assert_allclose(cells[c].to_numpy(float), ref[c], rtol=1e-9, equal_nan=True)
+
+
 # --------------------------------------------------------------------------------------------------
 # radial distribution
 # --------------------------------------------------------------------------------------------------
@@ -158,6 +198,65 @@ def test_rdf_of_uniform_points_is_one_with_edge_correction():
     assert g["pairs"].sum() > 0
 
 
+def _lattice_pair_counts(n: int, spacing_num: int, dr_den: int, n_bins: int) -> np.ndarray:
+    """Ordered pair counts of an n x n square lattice, spacing ``spacing_num / dr_den`` bins of width
+    ``1 / dr_den``, in exact integer arithmetic: bin k holds (k/dr_den)^2 <= d^2 < ((k+1)/dr_den)^2."""
+    counts = np.zeros(n_bins, dtype=np.int64)
+    for a in range(-(n - 1), n):
+        for b in range(-(n - 1), n):
+            if a == 0 and b == 0:
+                continue
+            d2 = (a * a + b * b) * spacing_num * spacing_num  # d^2 in units of (1/dr_den)^2 ...
+            k = int(np.floor(np.sqrt(d2)))  # ... so the bin is floor(d * dr_den)
+            while k * k > d2:
+                k -= 1
+            while (k + 1) * (k + 1) <= d2:
+                k += 1
+            if k < n_bins:
+                counts[k] += (n - abs(a)) * (n - abs(b))
+    return counts
+
+
+@pytest.mark.parametrize("spacing, dr, r_max", [(1.0, 1.0, 3.0), (1.0, 0.5, 2.0), (0.5, 0.25, 2.0),
+                                                (1.0, 0.25, 4.0)])
+def test_rdf_bins_are_half_open_on_a_square_lattice(spacing, dr, r_max):
+    # distances a * sqrt(i^2 + j^2): 1, 2, 3 (and 0.5, 1, ...) fall exactly on the edges k dr, which
+    # are exact binary fractions; sqrt(2), sqrt(5), ... fall inside bins
+    n = 12
+    p = square_lattice(n, spacing)
+    g = an.radial_distribution(p, (n - 1) * spacing, (n - 1) * spacing, r_max, dr)
+    expected = _lattice_pair_counts(n, int(round(spacing / dr)), int(round(1 / dr)), len(g))
+    np.testing.assert_array_equal(g["pairs"], expected)
+    first = int(round(spacing / dr))  # nearest neighbours at d = spacing = r_first exactly
+    assert g["pairs"].iloc[first] == 4 * n * (n - 1) + (4 * (n - 1) ** 2 if np.sqrt(2) * spacing
+                                                       < (first + 1) * dr else 0)
+    assert g["pairs"].iloc[:first].sum() == 0
+
+
+def test_rdf_does_not_count_a_pair_at_exactly_r_max():
+    p = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 0.75]])
+    g = an.radial_distribution(p, 1.0, 1.0, r_max=1.0, dr=0.25)
+    np.testing.assert_array_equal(g["pairs"], [0, 0, 0, 2])  # d = 0.75 in [0.75, 1); d = 1, 1.25 out
+    g = an.radial_distribution(p, 1.0, 1.0, r_max=1.5, dr=0.25)
+    np.testing.assert_array_equal(g["pairs"], [0, 0, 0, 2, 2, 2])
+
+
+def test_rdf_strips_and_edge_correction_equal_the_direct_computation(monkeypatch):
+    rng = np.random.default_rng(8)
+    p = rng.random((4000, 2)) * [30.0, 20.0]
+    whole = an.radial_distribution(p, 30.0, 20.0, r_max=4.0, dr=0.1)
+    monkeypatch.setattr(an, "_PAIR_CHUNK", 2000)  # ~ 50 strips
+    strips = an.radial_distribution(p, 30.0, 20.0, r_max=4.0, dr=0.1)
+    np.testing.assert_array_equal(strips["pairs"], whole["pairs"])
+    d = np.sqrt(((p[:, None, :] - p[None, :, :]) ** 2).sum(axis=2))
+    direct, _ = np.histogram(d[d > 0], bins=0.1 * np.arange(41))
+    np.testing.assert_array_equal(whole["pairs"], direct)
+    edges = 0.1 * np.arange(41)
+    shell = np.diff(an.disk_rectangle_area(p[:, :1], p[:, 1:], edges[None, :], (0, 30, 0, 20)), axis=1)
+    expected = (len(p) - 1) / 600.0 * shell.sum(axis=0)  # every particle through the exact formula
+    np.testing.assert_allclose(whole["g"], whole["pairs"] / expected, rtol=1e-12)
+
+
 def test_rdf_rejects_points_outside_the_box():
     with pytest.raises(ValueError):
         an.radial_distribution(np.array([[0.5, 0.5], [2.0, 0.5]]), 1.0, 1.0, 0.5, 0.1)
@@ -178,6 +277,33 @@ def test_min_distance_to_piston_by_species():
     assert gap["delta"].iloc[0] == pytest.approx(0.7)
 
 
+def _piston_record(phases: list[int], heights: list[float], forces: list[float]) -> pd.DataFrame:
+    n = len(phases)
+    return pd.DataFrame({"step": 10 * np.arange(n), "t": 0.02 * np.arange(n), "H": heights,
+                         "F_piston": forces, "phi": 0.5, "phase": phases})
+
+
+def test_max_compression_includes_the_turn_around_row_labelled_expand():
+    # relax, compress 20 -> 10.5, the row at hf = 10 (labelled expand, t_hold = 0) has the peak; a
+    # later expansion spike at H = 12 and a relaxation spike are not maximum compression
+    rec = _piston_record([1, 1, 2, 2, 2, 2, 4, 4, 4, 5],
+                         [20.0, 20.0, 20.0, 15.0, 12.0, 10.5, 10.0, 11.0, 12.0, 20.0],
+                         [1.0, 99.0, 1.0, 2.0, 5.0, 9.0, 12.0, 7.0, 50.0, 0.5])
+    assert an.max_compression_step(rec) == 60
+    np.testing.assert_array_equal(an.compression_rows(rec), [0, 0, 1, 1, 1, 1, 1, 0, 0, 0])
+    rec.loc[5, "F_piston"] = 13.0  # the last compression row wins when it is larger
+    assert an.max_compression_step(rec) == 50
+
+
+def test_max_compression_over_a_hold_and_without_a_compression_phase():
+    rec = _piston_record([2, 2, 3, 3, 3, 4, 4], [12.0, 11.0, 10.0, 10.0, 10.0, 10.0 + 1e-12, 10.5],
+                         [3.0, 6.0, 8.0, 9.0, 7.0, 9.5, 9.9])
+    np.testing.assert_array_equal(an.compression_rows(rec), [1, 1, 1, 1, 1, 1, 0])
+    assert an.max_compression_step(rec) == 50  # first expand row still at hf (round-off)
+    steady = _piston_record([0, 0, 0], [5.0, 5.0, 5.0], [1.0, 3.0, 2.0])
+    assert an.compression_rows(steady).all() and an.max_compression_step(steady) == 10
+
+
 def test_force_magnitudes():
     np.testing.assert_allclose(an.force_magnitudes([3.0, 0.0], [4.0, -2.0]), [5.0, 2.0])
 
@@ -189,10 +315,68 @@ def _two_species_forces(n1: int = 700, n2: int = 500) -> tuple[np.ndarray, np.nd
     return values, species
 
 
-def test_force_histogram_uses_astropy_knuth_bins_and_counts_everything():
+def _knuth_brute_force(values: np.ndarray, m_max: int) -> np.ndarray:
+    """Knuth's log posterior (astropy's _KnuthF, sign flipped), one numpy.histogram per bin count."""
+    v = np.sort(values)
+    n = len(v)
+    out = []
+    for m in range(1, m_max + 1):
+        nk, _ = np.histogram(v, np.linspace(v[0], v[-1], m + 1))
+        out.append(n * np.log(m) + gammaln(0.5 * m) - m * gammaln(0.5) - gammaln(n + 0.5 * m)
+                   + np.sum(gammaln(nk + 0.5)))
+    return np.array(out)
+
+
+def _bimodal(seed: int = 0) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    return np.r_[rng.normal(0.0, 1.0, 500), rng.normal(8.0, 0.2, 500)]
+
+
+@pytest.mark.parametrize("sample", ["normal", "uniform", "bimodal", "small", "exponential"])
+def test_knuth_posterior_equals_brute_force_for_every_bin_count(sample):
+    rng = np.random.default_rng(3)
+    v = {"normal": rng.normal(size=700), "uniform": rng.random(400), "bimodal": _bimodal(),
+         "small": rng.normal(size=7), "exponential": rng.exponential(size=600)}[sample]
+    lp = an.knuth_log_posterior(v)
+    brute = _knuth_brute_force(v, len(v))
+    assert lp.shape == (len(v),)
+    np.testing.assert_allclose(lp, brute, rtol=1e-12, atol=1e-9)
+    m = int(np.argmax(brute)) + 1
+    np.testing.assert_array_equal(an.knuth_bin_edges(v), np.linspace(v.min(), v.max(), m + 1))
+
+
+def test_knuth_bins_find_the_global_maximum_where_astropy_stops_at_a_local_one():
+    # Two clusters: the posterior has several maxima; astropy's knuth_bin_width (fmin from the
+    # Freedman-Diaconis count) stopped at 9 bins (astropy 8.0), the brute-force maximum is 57 bins.
+    v = _bimodal()
+    brute = _knuth_brute_force(v, len(v))
+    m_best = int(np.argmax(brute)) + 1
+    assert m_best == 57
+    assert len(an.knuth_bin_edges(v)) - 1 == m_best
+    lp = an.knuth_log_posterior(v)
+    astropy_stats = pytest.importorskip("astropy.stats")
+    _, edges = astropy_stats.knuth_bin_width(v, return_bins=True)
+    m_astropy = len(edges) - 1
+    assert lp[m_best - 1] >= lp[m_astropy - 1]  # ours is never worse, whatever astropy returns
+    h = an.force_histogram(v)
+    assert len(h) == m_best and h["count"].sum() == len(v)
+
+
+def test_knuth_posterior_edge_cases():
+    assert len(an.knuth_bin_edges([2.0, 2.0, 2.0])) == 2  # empty range: one bin [v - 0.5, v + 0.5]
+    np.testing.assert_array_equal(an.knuth_bin_edges([2.0, 2.0]), [1.5, 2.5])
+    v = np.random.default_rng(0).normal(size=50)
+    np.testing.assert_array_equal(an.knuth_log_posterior(v, max_bins=10), an.knuth_log_posterior(v)[:10])
+    with pytest.raises(ValueError, match="max_bins"):
+        an.knuth_log_posterior(v, max_bins=0)
+    with pytest.raises(ValueError, match="finite"):
+        an.knuth_log_posterior([1.0, np.nan])
+
+
+def test_force_histogram_uses_the_exact_knuth_bins_and_counts_everything():
     values, species = _two_species_forces()
     h = an.force_histogram(values, species)
-    _, edges = knuth_bin_width(values, return_bins=True)
+    edges = an.knuth_bin_edges(values)
     for label, n in ((1, 700), (2, 500)):
         part = h[h["species"] == label]
         np.testing.assert_array_equal(np.r_[part["left"], part["right"].iloc[-1]], edges)

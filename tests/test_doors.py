@@ -59,7 +59,8 @@ def test_outputs_parse_with_units(make_scene, tmp_path):
 
 
 def test_mean_distance_matches_definition(make_scene, tmp_path):
-    """D_hat (eq. 2.1) of the engine equals scipy's pdist mean on the same frame."""
+    """D_hat of the engine is half scipy's pdist mean on the same frame: the
+    convention of thesis Table 3.1, sum_{i<j} |r_i - r_j| / (N(N-1))."""
     from scipy.spatial.distance import pdist
 
     r = run(make_scene("demo", dict(SMALL, **{"output.distance_every": 500})), tmp_path / "r",
@@ -67,7 +68,7 @@ def test_mean_distance_matches_definition(make_scene, tmp_path):
     fr, md = r.frames(), r.mean_distance()
     for step in md["step"]:
         frame = io.frame_at(fr, int(step))
-        ref = pdist(frame[["x", "y"]].to_numpy()).mean()
+        ref = pdist(frame[["x", "y"]].to_numpy()).mean() / 2
         assert md.loc[md["step"] == step, "D_hat"].iloc[0] == pytest.approx(ref, rel=1e-12)
 
 

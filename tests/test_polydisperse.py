@@ -132,12 +132,15 @@ def test_small_particle_weight_and_wall(door, make_scene):
     assert fx[1] == pytest.approx(a**2 * side[1] + pair, rel=1e-12)
 
 
-def test_normal_force_of_a_small_magnet_eq_4_11(door, make_scene):
-    """Small magnet (D2 = 3 mm) between two big ones, sliding: friction = mu_d N_i."""
+@pytest.mark.parametrize("reading", ["eq_2_10", "eq_4_10"])
+def test_normal_force_of_a_small_magnet_eq_4_11(door, make_scene, reading):
+    """Small magnet (D2 = 3 mm) between two big ones, sliding: friction = mu_d N_i.
+    tilt = 'eq_2_10': theta = arcsin(E/sqrt(D^2+eps^2)) - phi (shipped); 'eq_4_10':
+    without the - phi, as eq. 4.10 is printed."""
     a, r = 0.6, 2.0
     ov = dict(BIG_SMALL, **{"particles.n": 3, "particles.mix_ratio": 0.3,
                             "physics.gravity": True, "physics.dry_friction": "first_order",
-                            "particles.species_diameter": [1.0, a]})
+                            "particles.species_diameter": [1.0, a], "physics.tilt": reading})
     d = door(make_scene("bidisperse/a060", ov))
     sp = d.state()["species"]
     assert list(sp) == [1, 1, 2]  # every 3rd is small
@@ -146,7 +149,7 @@ def test_normal_force_of_a_small_magnet_eq_4_11(door, make_scene):
 
     def tilt(dk: float) -> tuple[float, float]:
         phi = math.atan(EPS / dk)
-        return math.asin(GAP / math.sqrt(dk**2 + EPS**2)) - phi, phi
+        return math.asin(GAP / math.sqrt(dk**2 + EPS**2)) - (phi if reading == "eq_2_10" else 0.0), phi
 
     th_i, phi_i = tilt(a * D1)
     th_j, _ = tilt(D1)

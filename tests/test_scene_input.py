@@ -49,6 +49,7 @@ BAD = [
     ({"integration.neighbour": "verlet", "integration.tail_every": 0}, r"&integration tail_every = 0"),
     ({"integration.dt": 2.0}, r"&integration dt = 2: allowed range"),
     ({"physics.min_distance": 2.0}, r"&physics min_distance = 2"),
+    ({"physics.tilt": "eq_9"}, r"&physics tilt = 'eq_9': allowed values"),
     ({"output.checkpoint_every": -1}, r"&output checkpoint_every = -1"),
     ({"material.remanence": 1.0e4}, r"&material remanence = 10000"),
     ({"protocol.piston": "none"}, r"&protocol t_end = -1"),

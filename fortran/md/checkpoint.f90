@@ -41,7 +41,7 @@ contains
     end if
     if (ios == 0) write(u, iostat=ios, iomsg=iom) allocated(pst%y)
     if (ios == 0 .and. allocated(pst%y)) write(u, iostat=ios, iomsg=iom) pst%y, pst%yp, &
-         pst%vy, pst%fy, pst%has_previous
+         pst%vy, pst%fy, pst%has_previous, pst%nudge_step, pst%calm_since
     if (ios /= 0) call set_error(st, exit_io, 'checkpoint: write failed: '//trim(iom))
   end subroutine checkpoint_save
 
@@ -85,7 +85,7 @@ contains
     if (ios == 0) read(u, iostat=ios) has_piston
     if (ios == 0 .and. has_piston .neqv. allocated(pst%y)) ios = 1
     if (ios == 0 .and. has_piston) read(u, iostat=ios) pst%y, pst%yp, pst%vy, pst%fy, &
-         pst%has_previous
+         pst%has_previous, pst%nudge_step, pst%calm_since
     if (ios /= 0) call set_error(st, exit_io, 'checkpoint: payload does not match the scene')
   end subroutine checkpoint_restore
 

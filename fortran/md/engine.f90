@@ -17,6 +17,7 @@ module engine
   use walls, only: wall_forces, wall_energy
   use friction, only: gravity_force, viscous_friction, dry_friction
   use integrators, only: estimate_velocity, finish_velocity, advance
+  use model, only: int_stormer_verlet, int_velocity_verlet
   use observables, only: mean_distance, packing_fraction, kinetic_energy
   use output, only: output_t, write_piston, write_frame, write_distance, write_energy
   implicit none
@@ -89,6 +90,8 @@ contains
       sim%pst%mass = sim%m%piston_mass
       sim%pst%vx = 0
       sim%pst%vy = 0
+      sim%pst%nudge_step = -1
+      sim%pst%calm_since = -1
     end if
     if (sim%m%neighbour /= nb_all_pairs) call nlist_setup(sim%nl, sim%m%neighbour, &
          sim%m%r_cut, sim%m%skin, sim%m%width, sim%m%height, sim%s%n)
@@ -131,18 +134,16 @@ contains
           write(buf, '(a,i0,a,es12.5,a,i0,a,i0,a,es12.5,a,2(es12.5,1x),a,2(es12.5,1x),a,f6.3,a)') &
                'step ', s%step, ' t = ', s%t, ' T: particles ', s%id(bi), ' and ', s%id(bj), &
                ' are ', sqrt(r2min), ' D1 apart (at ', s%x(bi), s%y(bi), 'and ', s%x(bj), &
-               s%y(bj), ') < min_distance = ', sim%sc%min_distance, &
-               ' D1: the r^-4 force is singular; reduce dt'
-          call set_error(st, exit_numerical, trim(buf))
+               s%y(bj), ') < min_distance = ', sim%sc%min_distance, ' D1: '
+          call set_error(st, exit_numerical, trim(buf)//' '//crush_cause(sim, bi, bj))
           return
         end if
       end if
       if (m%piston_mode == piston_free .and. .not. (s%piston_h > 0 .and. &
            s%piston_h <= m%height)) then
         write(buf, '(a,i0,a,es12.5,a,es12.5,a)') 'step ', s%step, ' t = ', s%t, &
-             ' T: the free piston left the cell (H = ', s%piston_h, &
-             ' D1): too heavy or too fast for the bed; lower piston_mass or dt'
-        call set_error(st, exit_numerical, trim(buf))
+             ' T: the free piston left the cell (H = ', s%piston_h, ' D1): '
+        call set_error(st, exit_numerical, trim(buf)//' '//piston_exit_cause(sim))
         return
       end if
       call wall_forces(s%n, s%x, s%y, s%mu, m%wall_law, m%k_wall, m%width, m%height, &
@@ -258,7 +259,7 @@ contains
         pst%vy = 0
         pst%has_previous = .false.
       end if
-      if (s%step == sim%p%nudge_step) then
+      if (s%step == pst%nudge_step) then
         pst%y = pst%y + sim%p%nudge
         pst%vy = 0
         pst%has_previous = .false.
@@ -269,6 +270,143 @@ contains
       s%piston_h = pst%y(1)
     end associate
   end subroutine free_piston_begin
+
+  !> Nudge experiment: is the bed settled? Piston speed below settle_speed and
+  !> bed kinetic energy per particle below settle_ekin, without a break for
+  !> settle_hold; then the nudge is due at the next step and the run ends
+  !> t_record later. Not settled t_settle after the release: a clear failure.
+  !> Velocities are the finished ones of this step (as written to energy.dat);
+  !> computing them does not change the trajectory.
+  subroutine settle_check(sim, st)
+    type(sim_t), intent(inout) :: sim
+    type(status_t), intent(inout) :: st
+    real(dp) :: v, ek
+    character(len=800) :: buf
+    associate (s => sim%s, m => sim%m, p => sim%p, pst => sim%pst)
+      call finish_velocity(m%integrator, m%dt, s)
+      call finish_velocity(m%integrator, m%dt, pst)
+      v = abs(pst%vy(1))
+      ek = kinetic_energy(s%n, s%mass, s%vx, s%vy)/real(max(1, s%n), dp)
+      if (v < p%settle_speed .and. ek < p%settle_ekin) then
+        if (pst%calm_since < 0) pst%calm_since = s%t
+        if (s%t - pst%calm_since >= p%settle_hold - 0.5_dp*m%dt) then
+          pst%nudge_step = s%step + 1
+          p%n_steps = pst%nudge_step + p%record_steps
+        end if
+      else
+        pst%calm_since = -1
+      end if
+      if (pst%nudge_step < 0 .and. s%t >= p%t_relax + p%t_settle - 0.5_dp*m%dt) then
+        write(buf, '(a,i0,a,es12.5,a,es10.3,a,es10.3,a,es10.3,a,es10.3,a,es10.3,a,es10.3,a)') &
+             'step ', s%step, ' t = ', s%t, ' T: the bed did not settle within t_settle = ', p%t_settle, &
+             ' T of the release: piston speed ', v, ' D1/T (settle_speed ', p%settle_speed, &
+             '), bed kinetic energy ', ek, ' m1 g D1 per particle (settle_ekin ', p%settle_ekin, &
+             '), both needed for settle_hold = ', p%settle_hold, ' T; raise t_settle or the '// &
+             'thresholds, or damp more (viscous_gamma)'
+        call set_error(st, exit_numerical, trim(buf))
+      end if
+    end associate
+  end subroutine settle_check
+
+  !> Velocity of particle k [D1/T] as far as the state tells at a guard
+  !> (Stormer-Verlet: the last step's displacement / dt).
+  subroutine guard_velocity(sim, k, vx, vy)
+    type(sim_t), intent(in) :: sim
+    integer, intent(in) :: k
+    real(dp), intent(out) :: vx, vy
+    associate (s => sim%s)
+      if (.not. s%has_previous) then
+        vx = s%vx(k); vy = s%vy(k)
+      else if (sim%m%integrator == int_stormer_verlet) then
+        vx = (s%x(k) - s%xp(k))/sim%m%dt; vy = (s%y(k) - s%yp(k))/sim%m%dt
+      else if (sim%m%integrator == int_velocity_verlet) then
+        vx = s%xp(k); vy = s%yp(k)
+      else
+        vx = s%vx(k); vy = s%vy(k)
+      end if
+    end associate
+  end subroutine guard_velocity
+
+  !> The likely cause of a pair closer than min_distance, from what the state
+  !> shows: if the pair closed a large part (> 10 %) of its distance within the
+  !> last step, the step does not resolve the approach (dt); otherwise the
+  !> approach was resolved (a smaller dt would crush at the same time) and the
+  !> crush is physical: for a free piston, its weight against the bed's push on
+  !> it (weight larger: the bed cannot hold it; push larger: the impact).
+  function crush_cause(sim, bi, bj) result(text)
+    type(sim_t), intent(in) :: sim
+    integer, intent(in) :: bi, bj
+    character(len=:), allocatable :: text
+    character(len=600) :: buf, head
+    real(dp) :: dx, dy, d, vix, viy, vjx, vjy, closing, w, v
+    associate (s => sim%s, m => sim%m)
+      dx = s%x(bi) - s%x(bj); dy = s%y(bi) - s%y(bj)
+      d = max(sqrt(dx*dx + dy*dy), tiny(1.0_dp))
+      call guard_velocity(sim, bi, vix, viy)
+      call guard_velocity(sim, bj, vjx, vjy)
+      closing = -((vix - vjx)*dx + (viy - vjy)*dy)/d*m%dt   ! [D1 per step]
+      if (closing > 0.1_dp*d) then
+        write(buf, '(a,es10.3,a,f6.1,a)') 'the pair closed ', closing, ' D1 in the last step (', &
+             100*closing/d, ' % of its distance): the time step does not resolve this approach; '// &
+             'reduce dt'
+        text = trim(buf)
+        return
+      end if
+      write(head, '(a,es10.3,a,f5.1,a)') 'physical crush, dt is not the cause (the pair closed only ', &
+           closing, ' D1, ', 100*closing/d, ' % of its distance, in the last step)'
+      if (m%piston_mode == piston_free) then
+        w = m%piston_mass*merge(m%big_g, 0.0_dp, m%gravity_on)
+        v = sim%pst%vy(1)
+        if (sim%pst%has_previous .and. m%integrator == int_stormer_verlet) &
+             v = (sim%pst%y(1) - sim%pst%yp(1))/m%dt
+        if (sim%pst%has_previous .and. m%integrator == int_velocity_verlet) v = sim%pst%yp(1)
+        if (s%piston_force < w) then
+          write(buf, '(a,es10.3,a,es10.3,a)') ': the piston''s weight (', w, &
+               ' m1 g) exceeds what the bed can hold at min_distance (its push on the piston is ', &
+               s%piston_force, ' m1 g); use a lighter piston or a wider bed'
+        else
+          write(buf, '(a,es10.3,a,es10.3,a,es10.3,a)') ': the impact of the piston (speed ', v, &
+               ' D1/T, weight ', w, ' m1 g) squeezes the bed below min_distance although its '// &
+               'push (', s%piston_force, ' m1 g) exceeds the weight; use a lighter piston, '// &
+               'a lower h_start or more damping'
+        end if
+      else if (m%piston_mode == piston_prescribed) then
+        write(buf, '(a,es10.3,a)') ': the piston pushes with ', s%piston_force, &
+             ' m1 g and squeezes a pair below min_distance; compress less (hf, phi_final)'
+      else
+        buf = ': the pair is pushed below min_distance by the bed''s own load; check the scene'
+      end if
+    end associate
+    text = trim(head)//trim(buf)
+  end function crush_cause
+
+  !> The likely cause of a free piston outside (0, height]: launched upwards
+  !> (too light or too fast for the bed's push) or pushed through the floor.
+  function piston_exit_cause(sim) result(text)
+    type(sim_t), intent(in) :: sim
+    character(len=:), allocatable :: text
+    character(len=500) :: buf
+    real(dp) :: v, w
+    associate (s => sim%s, m => sim%m, pst => sim%pst)
+      v = pst%vy(1)
+      if (pst%has_previous .and. m%integrator == int_stormer_verlet) v = (pst%y(1) - pst%yp(1))/m%dt
+      if (pst%has_previous .and. m%integrator == int_velocity_verlet) v = pst%yp(1)
+      w = m%piston_mass*merge(m%big_g, 0.0_dp, m%gravity_on)
+      if (s%piston_h > m%height) then
+        write(buf, '(a,es10.3,a,es10.3,a,es10.3,a)') 'it left upwards at ', v, &
+             ' D1/T: the bed launched it, the piston is too light (weight ', w, &
+             ' m1 g; the bed pushed it with ', s%piston_force, ' m1 g at the last step) or '// &
+             'too fast; raise piston_mass, lower h_start or make the cell taller'
+      else if (s%piston_h <= 0) then
+        write(buf, '(a,es10.3,a,es10.3,a)') 'it went through the floor at ', v, &
+             ' D1/T: too heavy for the bed (weight ', w, ' m1 g); lower piston_mass'
+      else
+        write(buf, '(a,es10.3,a)') 'its height is not finite (speed ', v, &
+             ' D1/T); check the scene'
+      end if
+    end associate
+    text = trim(buf)
+  end function piston_exit_cause
 
   !> Kinetic + gravitational energy of a free piston [m1 g D1] (0 otherwise).
   real(dp) function piston_energy(sim) result(e)
@@ -325,7 +463,13 @@ contains
       s%t = real(s%step, dp)*m%dt
       call piston_at(sim%p, s%t, s%piston_h, s%phase)
       moving = .false.
-      if (m%piston_mode == piston_free) call free_piston_begin(sim, moving)
+      if (m%piston_mode == piston_free) then
+        if (sim%pst%nudge_step >= 0) then   ! (also after a resume: the nudge step is state)
+          sim%p%n_steps = sim%pst%nudge_step + sim%p%record_steps
+          if (s%step >= sim%pst%nudge_step) s%phase = 7
+        end if
+        call free_piston_begin(sim, moving)
+      end if
       o_pis = sim%writing .and. due(sim%sc%piston_every, s%step, last)
       o_frm = sim%writing .and. due(sim%sc%frame_every, s%step, last)
       o_dst = sim%writing .and. due(sim%sc%distance_every, s%step, last)
@@ -337,6 +481,8 @@ contains
         sim%pst%fx = 0
         sim%pst%fy = s%piston_force - m%big_g*m%piston_mass*merge(1, 0, m%gravity_on) &
              - m%piston_gamma*m%piston_mass*sim%pst%vy
+        if (sim%p%nudge > 0 .and. sim%pst%nudge_step < 0) call settle_check(sim, st)
+        if (st%code /= 0) return
       end if
       if (o_frm .or. o_en .or. last) then
         call finish_velocity(m%integrator, m%dt, s)

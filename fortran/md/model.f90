@@ -142,11 +142,13 @@ contains
       m%sp_diam(s) = dk
       m%sp_mass(s) = dk**2
       m%sp_mu(s) = dk**2
-      ! tilt of a magnet of diameter D_k in the gap E (thesis eq. 2.10, Fig. 2.5)
+      ! tilt of a magnet of diameter D_k in the gap E (thesis eq. 2.10, Fig. 2.5);
+      ! &physics tilt = 'eq_4_10' drops the - phi as eq. 4.10 is printed
       phi = atan(eps/dk)
       k = (sc%gap/sc%diameter)/sqrt(dk**2 + eps**2)
       if (m%dry_order > 0) then
-        theta = asin(k) - phi
+        theta = asin(k)
+        if (trim(sc%tilt) /= 'eq_4_10') theta = theta - phi
       else
         theta = 0
       end if

@@ -44,7 +44,9 @@ contains
          trim(units), '# step t[T] id species x[D1] y[D1] vx[D1/T] vy[D1/T] fx[m1*g] fy[m1*g] '// &
          'fmag[m1*g] fmx[m1*g] fmy[m1*g]')
     if (dist_on) call open1(o%u_dist, 'mean_distance.dat', &
-         '# mean_distance.dat: mean inter-particle distance, thesis eq. (2.1). '//trim(units), &
+         '# mean_distance.dat: D_hat = sum_{i<j} |r_i - r_j|/(N(N-1)), the convention of '// &
+         'thesis Table 3.1 (half the mean pair distance; eq. 2.1 as typeset is twice this). '// &
+         trim(units), &
          '# step t[T] D_hat[D1]')
     if (energy_on) call open1(o%u_energy, 'energy.dat', &
          '# energy.dat: mechanical energy (gravity potential from y = 0). '//trim(units), &

@@ -6,8 +6,13 @@
 !>         4 expansion hf -> h0, 5 final relaxation at h0.
 !> Piston 'fixed' stays at h_start (phase 0); 'none' has no piston (phase 0).
 !> Piston 'free' (thesis §5.3): held at h_start while the bed relaxes (phase 1),
-!> released to fall on the bed (phase 6) for t_settle, nudged up by `nudge`
-!> and released again (phase 7) for t_record; its height is then state.
+!> then released from rest. nudge = 0 (the thesis' Figs. 5.10, 5.12): the fall
+!> itself is the record (phase 6 for t_record). nudge > 0: the fall lasts until
+!> the engine finds the bed settled (piston speed below settle_speed and bed
+!> kinetic energy per particle below settle_ekin, both for settle_hold), at most
+!> t_settle; then the piston is lifted by `nudge` and released again (phase 7)
+!> for t_record. Its height is then state; the nudge step is engine state
+!> (piston state nudge_step), so phase 7 is set by the engine, not here.
 module protocol
   use kinds, only: dp, i8
   use scene, only: scene_t
@@ -24,8 +29,9 @@ module protocol
     integer :: mode = piston_prescribed
     real(dp) :: h_start = 0, h0 = 0, hf = 0, speed = 0, rate = 5
     real(dp) :: t_relax = 0, t_comp = 0, t_hold = 0, t_exp = 0, t_final = 0
-    real(dp) :: t_settle = 0, t_record = 0, nudge = 0   !< free piston
-    integer(i8) :: nudge_step = -1   !< free piston: the step at which the nudge is applied
+    real(dp) :: t_settle = 0, t_record = 0, nudge = 0   !< free piston [T], [T], [D1]
+    real(dp) :: settle_speed = 0, settle_ekin = 0, settle_hold = 0  !< [D1/T], [m1 g D1], [T]
+    integer(i8) :: record_steps = 0  !< free piston: steps recorded after the nudge
     real(dp) :: t_total = 0          !< [T]
     integer(i8) :: n_steps = 0       !< steps to run
   end type protocol_t
@@ -64,8 +70,15 @@ contains
       p%t_settle = sc%t_settle
       p%t_record = sc%t_record
       p%nudge = sc%nudge
-      p%t_total = p%t_relax + p%t_settle + p%t_record
-      p%nudge_step = nint((p%t_relax + p%t_settle)/sc%dt, i8)
+      p%settle_speed = sc%settle_speed
+      p%settle_ekin = sc%settle_ekin
+      p%settle_hold = sc%settle_hold
+      p%record_steps = nint(p%t_record/sc%dt, i8)
+      if (p%nudge > 0) then   ! upper bound: the engine shortens it once the bed has settled
+        p%t_total = p%t_relax + p%t_settle + p%t_record
+      else
+        p%t_total = p%t_relax + p%t_record
+      end if
     else
       p%h0 = p%h_start; p%hf = p%h_start
       p%t_total = sc%t_end
@@ -86,7 +99,8 @@ contains
     end select
   end function area_factor
 
-  !> Piston height [D1] and phase at time t [T].
+  !> Piston height [D1] and phase at time t [T] (free piston: 1 held, else 6;
+  !> the engine turns 6 into 7 from the nudge step on).
   pure subroutine piston_at(p, t, h, phase)
     type(protocol_t), intent(in) :: p
     real(dp), intent(in) :: t
@@ -97,7 +111,6 @@ contains
       h = p%h_start                  ! only meaningful while held (phase 1)
       phase = 1
       if (t >= p%t_relax) phase = 6
-      if (t >= p%t_relax + p%t_settle) phase = 7
       return
     end if
     if (p%mode /= piston_prescribed) then

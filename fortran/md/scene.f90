@@ -53,6 +53,7 @@ module scene
     real(dp) :: v_threshold = 1.0e-6_dp  !< [D1/T]
     real(dp) :: viscous_gamma = 0.0_dp   !< dimensionless gamma T/m1; 0 = off
     real(dp) :: min_distance = 0.5_dp    !< guard: stop when two centres come closer [D1]; 0 = off
+    character(len=name_len) :: tilt = 'eq_2_10'  !< tilt angle: 'eq_2_10' (with - phi) | 'eq_4_10' (without)
     ! &integration
     character(len=name_len) :: integrator = 'stormer_verlet'  !< | 'velocity_verlet' | 'euler'
     character(len=name_len) :: neighbour = 'all_pairs'  !< | 'cells' | 'verlet' | 'thesis'
@@ -79,9 +80,12 @@ module scene
     real(dp) :: t_end = -1.0_dp          !< total time for piston = fixed|none [T]
     real(dp) :: piston_mass = 100.0_dp   !< free piston: mass [m1]
     real(dp) :: piston_gamma = 0.0_dp    !< free piston: viscous friction, force -gamma M v
-    real(dp) :: t_settle = 50.0_dp       !< free piston: first fall, until at rest [T]
-    real(dp) :: nudge = 0.2_dp           !< free piston: lift after settling [D1]
-    real(dp) :: t_record = 20.0_dp       !< free piston: recorded free motion after the nudge [T]
+    real(dp) :: t_settle = 50.0_dp       !< free piston, nudge > 0: longest wait for the settling [T]
+    real(dp) :: nudge = 0.0_dp           !< free piston: lift once settled [D1]; 0 = record the fall
+    real(dp) :: t_record = 20.0_dp       !< free piston: recorded motion (the fall, or after the nudge) [T]
+    real(dp) :: settle_speed = 0.005_dp  !< free piston, nudge > 0: settled below this piston speed [D1/T]
+    real(dp) :: settle_ekin = 1.0e-4_dp  !< ... and below this bed kinetic energy per particle [m1 g D1]
+    real(dp) :: settle_hold = 25.0_dp    !< ... both held without a break for this long [T]
     ! &output (cadences in steps; 0 switches a file off)
     integer :: piston_every = 100
     integer :: frame_every = 0
@@ -108,7 +112,7 @@ contains
     real(dp) :: speed_init, jitter, fill_height, species_diameter(max_species), mix_ratio
     real(dp) :: species_fraction(max_species), hf_reference
     character(len=name_len) :: placement
-    character(len=name_len) :: pair_law, wall_law, dry_friction
+    character(len=name_len) :: pair_law, wall_law, dry_friction, tilt
     logical :: gravity
     real(dp) :: mu_static, mu_dynamic, v_threshold, viscous_gamma, min_distance
     character(len=name_len) :: integrator, neighbour, truncation, tail
@@ -117,6 +121,7 @@ contains
     character(len=name_len) :: piston
     real(dp) :: h_start, t_relax, relax_rate, h0, hf, phi_final, piston_speed
     real(dp) :: t_hold, t_final, t_end, piston_mass, piston_gamma, t_settle, nudge, t_record
+    real(dp) :: settle_speed, settle_ekin, settle_hold
     logical :: expand
     integer :: piston_every, frame_every, distance_every, energy_every, progress_every
     integer :: checkpoint_every
@@ -127,12 +132,12 @@ contains
     namelist /particles/ n, seed, speed_init, jitter, fill_height, n_species, &
          species_diameter, mix_ratio, placement, species_fraction
     namelist /physics/ pair_law, wall_law, gravity, dry_friction, mu_static, &
-         mu_dynamic, v_threshold, viscous_gamma, min_distance
+         mu_dynamic, v_threshold, viscous_gamma, min_distance, tilt
     namelist /integration/ integrator, neighbour, dt, r_cut, skin, truncation, tail, &
          tail_every, target_rel_error
     namelist /protocol/ piston, h_start, t_relax, relax_rate, h0, hf, phi_final, hf_reference, &
          piston_speed, t_hold, expand, t_final, t_end, piston_mass, piston_gamma, t_settle, &
-         nudge, t_record
+         nudge, t_record, settle_speed, settle_ekin, settle_hold
     namelist /output/ piston_every, frame_every, distance_every, energy_every, &
          progress_every, checkpoint_every
 
@@ -149,7 +154,7 @@ contains
     species_fraction = sc%species_fraction; hf_reference = sc%hf_reference
     placement = sc%placement
     pair_law = sc%pair_law; wall_law = sc%wall_law; gravity = sc%gravity
-    dry_friction = sc%dry_friction; mu_static = sc%mu_static
+    dry_friction = sc%dry_friction; mu_static = sc%mu_static; tilt = sc%tilt
     mu_dynamic = sc%mu_dynamic; v_threshold = sc%v_threshold
     viscous_gamma = sc%viscous_gamma; min_distance = sc%min_distance
     integrator = sc%integrator; neighbour = sc%neighbour; dt = sc%dt
@@ -161,6 +166,7 @@ contains
     t_final = sc%t_final; t_end = sc%t_end
     piston_mass = sc%piston_mass; piston_gamma = sc%piston_gamma; t_settle = sc%t_settle
     nudge = sc%nudge; t_record = sc%t_record
+    settle_speed = sc%settle_speed; settle_ekin = sc%settle_ekin; settle_hold = sc%settle_hold
     piston_every = sc%piston_every; frame_every = sc%frame_every
     distance_every = sc%distance_every; energy_every = sc%energy_every
     progress_every = sc%progress_every; checkpoint_every = sc%checkpoint_every
@@ -204,7 +210,7 @@ contains
     sc%species_fraction = species_fraction; sc%hf_reference = hf_reference
     sc%placement = placement
     sc%pair_law = pair_law; sc%wall_law = wall_law; sc%gravity = gravity
-    sc%dry_friction = dry_friction; sc%mu_static = mu_static
+    sc%dry_friction = dry_friction; sc%mu_static = mu_static; sc%tilt = tilt
     sc%mu_dynamic = mu_dynamic; sc%v_threshold = v_threshold
     sc%viscous_gamma = viscous_gamma; sc%min_distance = min_distance
     sc%integrator = integrator; sc%neighbour = neighbour; sc%dt = dt
@@ -216,6 +222,7 @@ contains
     sc%t_final = t_final; sc%t_end = t_end
     sc%piston_mass = piston_mass; sc%piston_gamma = piston_gamma; sc%t_settle = t_settle
     sc%nudge = nudge; sc%t_record = t_record
+    sc%settle_speed = settle_speed; sc%settle_ekin = settle_ekin; sc%settle_hold = settle_hold
     sc%piston_every = piston_every; sc%frame_every = frame_every
     sc%distance_every = distance_every; sc%energy_every = energy_every
     sc%progress_every = progress_every; sc%checkpoint_every = checkpoint_every
@@ -338,6 +345,7 @@ contains
     call rpos('physics', 'v_threshold', sc%v_threshold, 1.0e-15_dp, 1.0_dp)
     call rpos('physics', 'viscous_gamma', sc%viscous_gamma, 0.0_dp, 1.0e6_dp, .true.)
     call rpos('physics', 'min_distance', sc%min_distance, 0.0_dp, 1.0_dp, .true.)
+    call choice('physics', 'tilt', sc%tilt, [character(len=name_len) :: 'eq_2_10', 'eq_4_10'])
     if (trim(sc%dry_friction) /= 'none') then
       ! every species must be able to tilt against the glass (eq. 2.10)
       dmax = sqrt((sc%diameter*minval(sc%species_diameter(1:max(1, min(sc%n_species, &
@@ -395,6 +403,9 @@ contains
       call rpos('protocol', 't_settle', sc%t_settle, 0.0_dp, 1.0e9_dp, .true.)
       call rpos('protocol', 'nudge', sc%nudge, 0.0_dp, 1.0e3_dp, .true.)
       call rpos('protocol', 't_record', sc%t_record, 0.0_dp, 1.0e9_dp)
+      call rpos('protocol', 'settle_speed', sc%settle_speed, 0.0_dp, 1.0e3_dp)
+      call rpos('protocol', 'settle_ekin', sc%settle_ekin, 0.0_dp, 1.0e6_dp)
+      call rpos('protocol', 'settle_hold', sc%settle_hold, 0.0_dp, 1.0e9_dp, .true.)
     else
       call rpos('protocol', 't_end', sc%t_end, 1.0e-12_dp, 1.0e9_dp)
     end if
@@ -592,6 +603,7 @@ contains
     call pr('v_threshold', sc%v_threshold, 'D1/T')
     call pr('viscous_gamma', sc%viscous_gamma, 'dimensionless gamma*T/m1')
     call pr('min_distance', sc%min_distance, 'D1, guard (0 = off)')
+    call ps('tilt', sc%tilt, 'eq_2_10: arcsin(E/sqrt(D^2+eps^2)) - phi; eq_4_10: without - phi')
     write(u, '(a)') '/'
     write(u, '(a)') '&integration'
     call ps('integrator', sc%integrator, '')
@@ -620,9 +632,12 @@ contains
     call pr('t_end', sc%t_end, 'T')
     call pr('piston_mass', sc%piston_mass, 'm1 (free piston)')
     call pr('piston_gamma', sc%piston_gamma, 'free piston viscous friction')
-    call pr('t_settle', sc%t_settle, 'T (free piston)')
-    call pr('nudge', sc%nudge, 'D1 (free piston)')
+    call pr('t_settle', sc%t_settle, 'T (free piston, nudge > 0: longest wait for settling)')
+    call pr('nudge', sc%nudge, 'D1 (free piston; 0 = record the fall)')
     call pr('t_record', sc%t_record, 'T (free piston)')
+    call pr('settle_speed', sc%settle_speed, 'D1/T (free piston, nudge > 0)')
+    call pr('settle_ekin', sc%settle_ekin, 'm1 g D1 per particle (free piston, nudge > 0)')
+    call pr('settle_hold', sc%settle_hold, 'T (free piston, nudge > 0)')
     write(u, '(a)') '/'
     write(u, '(a)') '&output ! cadences in steps, 0 = off'
     call pi_('piston_every', sc%piston_every, '')

@@ -30,6 +30,8 @@ module state
     real(dp) :: piston_v = 0               !< free piston: velocity at the current step [D1/T]
     real(dp) :: piston_f = 0               !< free piston: total force on it [m1 g]
     integer :: phase = 0                   !< protocol phase of the current step
+    integer(i8) :: nudge_step = -1         !< free piston state: step of the nudge (-1: not yet)
+    real(dp) :: calm_since = -1            !< free piston state: settling criterion holds since [T] (-1: not)
     logical :: has_previous = .false.      !< xp, yp valid
     logical :: tail_ready = .false.        !< fx_far, fy_far, s3_far computed
   end type state_t

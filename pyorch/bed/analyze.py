@@ -33,8 +33,9 @@ Tables of :func:`analyze_run` (lengths D1, times T, forces m1 g):
 ``summary`` (a Series)
     ``N``, ``n_species``, ``R`` (fraction of particles not of species 1; the scene's mix_ratio without
     frames), ``a`` (D2/D1; 1 for a
-    mono-disperse bed), ``F_max`` (largest F_piston of the compression phase, phase 2; of the whole run
-    without one), ``step_F_max``, ``t_F_max``, ``H_at_F_max``, ``phi_at_F_max``, ``D_hat`` (row nearest
+    mono-disperse bed), ``F_max`` (largest F_piston over the compression, phase 2, and the turn-around
+    rows at the lowest piston height, labelled hold or expand: :func:`pyorch.bed.analysis.compression_rows`; of the whole
+    run without a compression phase), ``step_F_max``, ``t_F_max``, ``H_at_F_max``, ``phi_at_F_max``, ``D_hat`` (row nearest
     to the F_max step), ``frame_step`` (the particle frame nearest in step to the F_max step: "maximum
     compression"), and at that frame ``n_interior``, ``n_le4``, ``n5``, ``n6``, ``n7``, ``n_ge8``,
     ``Psi6``, ``Psi6_local``, ``R6_mean``, ``R6_std``, ``delta``.
@@ -58,7 +59,7 @@ from pyorch.bed import analysis
 from pyorch.bed import structure_plots as sp
 
 __all__ = ["analyze_run", "write_tables", "plot_run", "run_geometry", "max_compression_step",
-           "magnetic_force_vectors"]
+           "compression_rows", "magnetic_force_vectors"]
 
 Tables = dict[str, "pd.DataFrame | pd.Series"]
 
@@ -89,11 +90,8 @@ def run_geometry(run_dir: str | Path) -> dict[str, Any]:
             "n_species": n_species, "mix_ratio": float(part.get("mix_ratio", 0.0) or 0.0)}
 
 
-def max_compression_step(piston_df: pd.DataFrame) -> int:
-    """Step of the largest piston force during compression (phase 2; whole run without phase 2)."""
-    comp = piston_df[piston_df["phase"] == 2]
-    comp = comp if not comp.empty else piston_df
-    return int(comp.loc[comp["F_piston"].idxmax(), "step"])
+compression_rows = analysis.compression_rows
+max_compression_step = analysis.max_compression_step
 
 
 def _nearest(df: pd.DataFrame, step: int) -> pd.Series:

@@ -38,7 +38,8 @@ def _frame_metrics_near(run: Any, step: int) -> dict[str, float]:
 def summary_metrics(run: Any) -> dict[str, float]:
     """Default per-point metrics of a completed run (NaN when not available).
 
-    F_max: maximum piston force over the compression phase (phase 2) [m1 g];
+    F_max: maximum piston force over the compression and the turn-around
+    (:func:`pyorch.bed.analysis.max_compression_step`) [m1 g];
     H_at_F_max: piston height at that step [D1]; D_hat: mean inter-particle
     distance [D1] at the mean_distance.dat row nearest to the F_max step;
     n5, n6, n7 (Voronoi polygon fractions) and Psi6 of the particle frame
@@ -46,11 +47,12 @@ def summary_metrics(run: Any) -> dict[str, float]:
     """
     out = _nan_metrics()
     piston = run.piston()
-    comp = piston[piston["phase"] == 2]
-    if comp.empty:
+    if not (piston["phase"] == 2).any():
         return out
-    peak = comp.loc[comp["F_piston"].idxmax()]
-    step = int(peak["step"])
+    from pyorch.bed.analysis import max_compression_step
+
+    step = max_compression_step(piston)
+    peak = piston.loc[piston["step"] == step].iloc[0]
     out["F_max"], out["H_at_F_max"] = float(peak["F_piston"]), float(peak["H"])
     if (run.dir / "mean_distance.dat").is_file():
         md = run.mean_distance()

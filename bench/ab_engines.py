@@ -1,0 +1,117 @@
+"""Same scenes, two engine executables, interleaved: the per-step time ratio of B over A.
+
+Used to show that a change of layout or of the runner leaves the step cost alone. Runs
+alternate A, B, A, B, ... (each repeat) so that load from other processes hits both alike;
+the table gives the fastest run of each and the median of the per-pair ratios.
+
+    .venv/bin/python bench/ab_engines.py --a /tmp/old/magbed --b .venv/bin/magbed --repeat 5
+
+With ``--instructions`` the step cost is counted, not timed: ``valgrind --tool=callgrind``
+counts the instructions of two run lengths per scene and engine, and their difference divided by
+the extra steps is the cost of one step without the set-up. Counts do not depend on other load
+on the machine (the same total twice), so a 1 % difference is a real one.
+
+Both executables must read the same scene format (the scenes are written by this checkout's
+pyorch). Output: bench/results/ab_engines.csv.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import statistics
+import subprocess
+import tempfile
+from pathlib import Path
+
+import pandas as pd
+
+import common
+from pyorch.scene import Scene
+
+SCENES = {
+    # (label, base scene, overrides): whole steps of the shipped force paths
+    "standard N=368 verlet+tail": ("standard", {"protocol.t_relax": 4.0, "protocol.h0": 75.0,
+                                                "protocol.hf": 70.0, "protocol.expand": False,
+                                                "protocol.t_final": 0.0,
+                                                "output.distance_every": 0}),
+    "standard N=368 all pairs": ("standard", {"integration.neighbour": "all_pairs",
+                                              "integration.tail": "none",
+                                              "protocol.t_relax": 4.0, "protocol.h0": 75.0,
+                                              "protocol.hf": 72.0, "protocol.expand": False,
+                                              "protocol.t_final": 0.0,
+                                              "output.distance_every": 0}),
+}
+
+
+def one(exe: str, scene: Path, out: Path) -> float:
+    """Wall time per step [s] of one run (run.json)."""
+    p = subprocess.run([exe, str(scene), "--out", str(out), "--quiet"], capture_output=True,
+                       text=True, env={"OMP_NUM_THREADS": "1", "PATH": "/usr/bin:/bin"})
+    if p.returncode != 0:
+        raise RuntimeError(f"{exe}: exit {p.returncode}: {p.stderr.strip()}")
+    meta = json.loads((out / "run.json").read_text())
+    return float(meta["wall_time_s"]) / int(meta["steps_done"])
+
+
+def instructions(exe: str, scene: Path, out: Path) -> int:
+    """Instructions executed by one run (callgrind's 'Collected' total)."""
+    p = subprocess.run(["valgrind", "--tool=callgrind", "--callgrind-out-file=/dev/null", exe,
+                        str(scene), "--out", str(out), "--quiet"], capture_output=True, text=True,
+                       env={"OMP_NUM_THREADS": "1", "PATH": "/usr/bin:/bin"})
+    m = re.search(r"Collected\s*:\s*(\d+)", p.stderr)
+    if p.returncode != 0 or m is None:
+        raise RuntimeError(f"{exe} under callgrind: exit {p.returncode}: {p.stderr[-500:]}")
+    return int(m.group(1))
+
+
+def per_step_instructions(exe: str, base: str, over: dict, tmp: Path, tag: str) -> float:
+    """(I(long) - I(short)) / extra steps: instructions of one step, set-up removed."""
+    counts = []
+    for t_relax in (2.0, 4.0):
+        sc = Scene.read(common.REPO / "runs" / f"{base}.nml").with_overrides(
+            {**over, "protocol.t_relax": t_relax})
+        path = sc.write(tmp / f"{tag}_{t_relax}.nml")
+        counts.append(instructions(exe, path, tmp / f"{tag}_{t_relax}"))
+    dt = float(Scene.read(common.REPO / "runs" / f"{base}.nml").get("integration", "dt"))
+    return (counts[1] - counts[0]) / round(2.0 / dt)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--a", required=True, help="reference executable")
+    ap.add_argument("--b", required=True, help="executable under test")
+    ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--instructions", action="store_true",
+                    help="count instructions per step with callgrind instead of timing")
+    args = ap.parse_args()
+    rows = []
+    if args.instructions:
+        with tempfile.TemporaryDirectory() as tmp:
+            for k, (label, (base, over)) in enumerate(SCENES.items()):
+                ia = per_step_instructions(args.a, base, over, Path(tmp), f"a{k}")
+                ib = per_step_instructions(args.b, base, over, Path(tmp), f"b{k}")
+                rows.append({"scene": label, "A_instructions_per_step": ia,
+                             "B_instructions_per_step": ib, "B_over_A": ib / ia})
+        common.save_table(pd.DataFrame(rows), "ab_instructions.csv")
+        return
+    with tempfile.TemporaryDirectory() as tmp:
+        for label, (base, over) in SCENES.items():
+            scene = Scene.read(common.REPO / "runs" / f"{base}.nml").with_overrides(over)
+            path = scene.write(Path(tmp) / f"{base}.nml")
+            ta, tb = [], []
+            for k in range(args.repeat):
+                ta.append(one(args.a, path, Path(tmp) / f"a{k}{len(rows)}"))
+                tb.append(one(args.b, path, Path(tmp) / f"b{k}{len(rows)}"))
+            ratios = [b / a for a, b in zip(ta, tb)]
+            rows.append({"scene": label, "A_best_us_per_step": 1e6 * min(ta),
+                         "B_best_us_per_step": 1e6 * min(tb),
+                         "B_over_A_best": min(tb) / min(ta),
+                         "B_over_A_median_pair": statistics.median(ratios),
+                         "repeats": args.repeat})
+    common.save_table(pd.DataFrame(rows), "ab_engines.csv")
+
+
+if __name__ == "__main__":
+    main()
