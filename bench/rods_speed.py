@@ -5,6 +5,8 @@ Reproduce (repository root, about 1 minute on one core):
 
     OMP_NUM_THREADS=1 .venv/bin/python bench/rods_speed.py
     # writes bench/results/rods_speed.csv and bench/results/rods_onsager_force.csv
+    OMP_NUM_THREADS=1 .venv/bin/python bench/rods_speed.py threads
+    # writes bench/results/rods_threads.csv: 1 vs 2 threads at N = 1e6 (wall time, best of 3)
 
 Times are the engine process's CPU time (getrusage of the child) - on a shared machine
 the wall time also counts other jobs - over the whole run (initial sampling, step-0
@@ -32,7 +34,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "bench"))
 import common  # noqa: E402
 
-from pyorch import rods  # noqa: E402
+from pyorch import io, rods  # noqa: E402
 from pyorch.run import run  # noqa: E402
 from pyorch.scene import Scene  # noqa: E402
 
@@ -130,10 +132,44 @@ def onsager_force(tmp: Path) -> pd.DataFrame:
     return pd.DataFrame(rows).rename(columns={"K": "K_or_M"})
 
 
+def wall_per_step(sc_full: Scene, sc_one: Scene, steps: int, threads: int, tmp: Path,
+                  tag: str) -> float:
+    """Engine wall time per step [s] (run.json), best of 3, 1-step run subtracted."""
+    def wall(sc: Scene, name: str) -> float:
+        out = tmp / name
+        run(sc, out, progress=False, threads=threads)
+        return float(io.read_run_json(out)["wall_time_s"])
+    full = min(wall(sc_full, f"{tag}_n{k}") for k in range(3))
+    one = min(wall(sc_one, f"{tag}_1{k}") for k in range(3))
+    return (full - one) / (steps - 1)
+
+
+def threads_table(tmp: Path) -> pd.DataFrame:
+    """1 vs 2 threads at N = 1e6 (wall time: threads share the machine with other jobs)."""
+    rows = []
+    for label, scene, over in [
+            ("test1 (transport + collisions)", "rods_test1_free.nml", {}),
+            ("test4 onsager histogram M=256", "rods_test4_onsager.nml",
+             {"mean_field.onsager_force": "histogram"})]:
+        base = Scene.read(ROOT / "runs" / scene)
+        over = {**QUIET, "rods.n": 1000000, **over}
+        full = base.with_overrides({**over, "rods.t_end": 41 * 0.05})
+        one = base.with_overrides({**over, "rods.t_end": 0.05})
+        for th in (1, 2):
+            w = wall_per_step(full, one, 41, th, tmp, f"th{th}{scene}")
+            rows.append({"scene": label, "threads": th, "wall_per_step_s": w,
+                         "particle_steps_per_s": 1e6 / w,
+                         "load_average_1min": common.load_average()[0]})
+    return pd.DataFrame(rows)
+
+
 def main() -> None:
     print(common.machine_line())
     with tempfile.TemporaryDirectory() as tmp:
         t = Path(tmp)
+        if sys.argv[1:] == ["threads"]:
+            common.save_table(threads_table(t), "rods_threads.csv")
+            return
         common.save_table(onsager_force(t), "rods_onsager_force.csv")
         common.save_table(speed(t), "rods_speed.csv")
 

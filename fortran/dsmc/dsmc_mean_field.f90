@@ -47,6 +47,7 @@
 !> one-body wells, (1/2) <U(theta_i)> for Onsager (pairs counted once).
 module dsmc_mean_field
   use kinds, only: dp, i8, pi
+  use parallel, only: par_min_loop
   implicit none
   private
 
@@ -192,6 +193,8 @@ contains
     end do
     g = dt*f%alpha*f%length**2/f%inertia
     n = size(theta, kind=i8)
+    !$omp parallel do schedule(static) if(n >= par_min_loop) &
+    !$omp private(m, k, zr, zi, pr, pi_, tmp, acc)
     do i0 = 1, n, chunk
       m = int(min(int(chunk, i8), n - i0 + 1))
       zr(1:m) = c2(i0:i0 + m - 1)
@@ -207,6 +210,7 @@ contains
       end do
       omega(i0:i0 + m - 1) = omega(i0:i0 + m - 1) - g*acc(1:m)
     end do
+    !$omp end parallel do
   end subroutine kick_onsager_fourier
 
   !> Cloud-in-cell weights of phi = theta mod pi on the M points phi_i = (i-1) pi/M
@@ -271,10 +275,12 @@ contains
     end do
     tab(m + 1) = tab(1)
     g = dt*f%alpha*f%length**2/f%inertia
+    !$omp parallel do schedule(static) if(size(theta) >= par_min_loop) private(c, fr)
     do k = 1, size(theta, kind=i8)
       call locate(theta(k), m, c, fr)
       omega(k) = omega(k) - g*((1.0_dp - fr)*tab(c + 1) + fr*tab(c + 2))
     end do
+    !$omp end parallel do
   end subroutine kick_onsager_histogram
 
   !> Interaction energy per sample [m L^2/tau^2] of the same form as the force.

@@ -10,7 +10,9 @@
 !> time t0 of the scene (tau and dt are in t0); energies m L^2/t0^2.
 !> Random numbers: the intrinsic random_number seeded from &rods seed; the
 !> generator's state and the pair permutation are in the checkpoint, so a
-!> resumed run is bit-identical to an uninterrupted one. One thread.
+!> resumed run is bit-identical to an uninterrupted one. OpenMP: the pair loop (all random
+!> numbers drawn on one thread beforehand, pairs disjoint) and the Onsager kicks, so the
+!> samples are the same bits for any thread count.
 module dsmc_rods
   use kinds, only: dp, i8, pi
   use errors, only: status_t, set_error, exit_bad_input, exit_io, exit_numerical, msg_len
@@ -22,7 +24,7 @@ module dsmc_rods
        collide, pair_energy, energy_change
   use dsmc_mean_field, only: field_t, transport, interaction_energy
   use dsmc_moments, only: moments_t, sample_moments, h_estimate, histogram, wrap_angle
-  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
+  use parallel, only: par_min_loop
   implicit none
   private
 
@@ -61,7 +63,7 @@ module dsmc_rods
     logical :: collision_audit = .false.
     ! state
     type(collision_t) :: law
-    real(dp), allocatable :: v(:, :), theta(:), omega(:), u(:)
+    real(dp), allocatable :: v(:, :), theta(:), omega(:), u(:), de(:)
     integer(i8), allocatable :: perm(:)
     integer(i8) :: step = 0, n_steps = 0, n_collisions = 0, nc = 0
     real(dp) :: e_lost = 0.0_dp        !< energy lost in collisions per sample (formula)
@@ -286,7 +288,7 @@ contains
     self%omega = self%omega0 + self%omega_spread*a
     if (.not. self%rotation) self%omega = 0.0_dp
     self%perm = [(i, i = 1, self%n)]
-    allocate(self%u(max(1_i8, 5*self%nc)))
+    allocate(self%u(max(1_i8, 5*self%nc)), self%de(max(1_i8, self%nc)))
     self%step = 0
     self%n_collisions = 0
     self%e_lost = 0.0_dp
@@ -488,42 +490,66 @@ contains
     end if
   end subroutine advance
 
-  !> Nanbu-Babovsky: nc disjoint pairs without replacement, the rod law on each.
+  !> Nanbu-Babovsky: nc disjoint pairs without replacement, the rod law on each. The random
+  !> numbers (pair draw and impact parameters) are drawn on one thread before the pairs are
+  !> processed, and the pairs are disjoint: the samples are bit-identical for any thread count.
+  !> The lost energy is summed from a per-pair buffer in pair order (same bits too).
   subroutine collision_step(self)
     class(rods_t), intent(inout) :: self
-    integer(i8) :: p, i, j, nc
-    real(dp) :: r1(2), r2(2), n(2), jimp, gt, gr, kk, de, e0, p0(2), scale
+    integer(i8) :: nc
+    real(dp) :: ade, adp
     nc = self%nc
-    e0 = 0.0_dp; p0 = 0.0_dp; scale = 0.0_dp
     call random_number(self%u(1:5*nc))
     call draw_pairs(self%perm, self%u(1:2*nc), nc)
-    do p = 1, nc
-      i = self%perm(2*p - 1)
-      j = self%perm(2*p)
-      if (self%rotation) then
-        call rod_geometry(self%theta(i), self%theta(j), self%length, &
-             self%u(2*nc + 3*p - 2:2*nc + 3*p), r1, r2, n)
-      else
-        call point_geometry(self%u(2*nc + 3*p - 2), r1, r2, n)
-      end if
-      if (self%collision_audit) then
-        e0 = pair_energy(self%law, self%v(:, i), self%omega(i), self%v(:, j), self%omega(j))
-        p0 = self%v(:, i) + self%v(:, j)
-        scale = sqrt(sum(self%v(:, i)**2)) + sqrt(sum(self%v(:, j)**2))
-      end if
-      call collide(self%law, self%v(:, i), self%omega(i), self%v(:, j), self%omega(j), r1, r2, &
-           n, jimp, gt, gr, kk)
-      de = energy_change(self%law, jimp, gt, gr, kk)
-      self%e_lost = self%e_lost - de/real(self%n, dp)
-      if (self%collision_audit) then
-        self%audit_de = max(self%audit_de, abs(pair_energy(self%law, self%v(:, i), &
-             self%omega(i), self%v(:, j), self%omega(j)) - e0 - de)/max(e0, tiny(1.0_dp)))
-        self%audit_dp = max(self%audit_dp, sqrt(sum((self%v(:, i) + self%v(:, j) - p0)**2))/ &
-             max(scale, tiny(1.0_dp)))
-      end if
-    end do
+    call collide_pairs(self%law, self%collision_audit, self%perm(1:2*nc), self%u(2*nc + 1:5*nc), &
+         self%v, self%theta, self%omega, self%de(1:nc), ade, adp)
+    self%e_lost = self%e_lost - sum(self%de(1:nc))/real(self%n, dp)
+    self%audit_de = max(self%audit_de, ade)
+    self%audit_dp = max(self%audit_dp, adp)
     self%n_collisions = self%n_collisions + nc
   end subroutine collision_step
+
+  !> The rod law on the pairs (pidx(2p-1), pidx(2p)) with impact uniforms ug(3p-2:3p);
+  !> de(p) = the formula's energy change; ade, adp = the audit's maxima (0 unless audit).
+  subroutine collide_pairs(law, audit, pidx, ug, v, theta, omega, de, ade, adp)
+    type(collision_t), intent(in) :: law
+    logical, intent(in) :: audit
+    integer(i8), intent(in) :: pidx(:)
+    real(dp), intent(in) :: ug(:), theta(:)
+    real(dp), intent(inout) :: v(:, :), omega(:)
+    real(dp), intent(out) :: de(:), ade, adp
+    integer(i8) :: p, i, j, nc
+    real(dp) :: r1(2), r2(2), n(2), jimp, gt, gr, kk, e0, p0(2), scale
+    nc = size(de, kind=i8)
+    ade = 0.0_dp
+    adp = 0.0_dp
+    e0 = 0.0_dp; p0 = 0.0_dp; scale = 0.0_dp
+    !$omp parallel do schedule(static) if(nc >= par_min_loop) default(shared) &
+    !$omp private(p, i, j, r1, r2, n, jimp, gt, gr, kk) firstprivate(e0, p0, scale) &
+    !$omp reduction(max: ade, adp)
+    do p = 1, nc
+      i = pidx(2*p - 1)
+      j = pidx(2*p)
+      if (law%rotation) then
+        call rod_geometry(theta(i), theta(j), law%length, ug(3*p - 2:3*p), r1, r2, n)
+      else
+        call point_geometry(ug(3*p - 2), r1, r2, n)
+      end if
+      if (audit) then
+        e0 = pair_energy(law, v(:, i), omega(i), v(:, j), omega(j))
+        p0 = v(:, i) + v(:, j)
+        scale = sqrt(sum(v(:, i)**2)) + sqrt(sum(v(:, j)**2))
+      end if
+      call collide(law, v(:, i), omega(i), v(:, j), omega(j), r1, r2, n, jimp, gt, gr, kk)
+      de(p) = energy_change(law, jimp, gt, gr, kk)
+      if (audit) then
+        ade = max(ade, abs(pair_energy(law, v(:, i), omega(i), v(:, j), omega(j)) - e0 - &
+             de(p))/max(e0, tiny(1.0_dp)))
+        adp = max(adp, sqrt(sum((v(:, i) + v(:, j) - p0)**2))/max(scale, tiny(1.0_dp)))
+      end if
+    end do
+    !$omp end parallel do
+  end subroutine collide_pairs
 
   subroutine finish(self, st)
     class(rods_t), intent(inout) :: self
