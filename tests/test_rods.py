@@ -193,6 +193,24 @@ def test_dipole_equilibrium_von_mises(tmp_path: Path) -> None:
     assert abs(c.mean() - ref) < 5 * c.std() / np.sqrt(n) + 0.01 * ref
 
 
+def test_quadratic_equilibrium_gaussian(tmp_path: Path) -> None:
+    """Test 2: the harmonic well in the angle relaxes to theta ~ Gaussian(theta_hat, T/alpha)
+    at the temperature of v and omega: <(theta - theta_hat)^2> = T/alpha and the fourth moment
+    3 (T/alpha)^2, within 5 sigma."""
+    n = 20000
+    out = _run(tmp_path, "quad", ROOT / "runs" / "rods_test2_quadratic.nml", **{
+        "rods.n": n, "rods.t_end": 30.0, "rods.dt": 0.05, "rods.inertia_model": "thin_rod",
+        "mean_field.alpha": 2.0, "mean_field.theta_hat": 0.3,
+        "output.samples_every": 10**9, "output.histogram_every": 0})
+    s = rods.samples(out)
+    y = s[s["step"] == s["step"].max()]["theta"].to_numpy() - 0.3
+    h = rods.history(out)
+    var = h["T"].iloc[-len(h) // 5:].mean() / 2.0
+    assert abs(np.mean(y**2) - var) < 5 * var * np.sqrt(2.0 / n) + 0.01 * var
+    assert abs(np.mean(y**4) - 3 * var**2) < 5 * var**2 * np.sqrt(96.0 / n) + 0.02 * var**2
+    assert abs(np.mean(y)) < 5 * np.sqrt(var / n)
+
+
 def test_resume_bit_identical(tmp_path: Path) -> None:
     over = {"rods.n": 3000, "rods.t_end": 5.0, "output.checkpoint_every": 30,
             "output.histogram_every": 25}
