@@ -66,6 +66,10 @@ TABLE_3_2 = {368: (15.26, 0.24), 460: (17.63, 0.12), 552: (19.44, 0.19), 644: (2
              736: (23.23, 0.14)}                                  # N: (mean, sd) [N], O(N^2)
 TABLE_5_1 = {"slope": 0.0213, "intercept": 7.59}                   # N/particle, N
 TABLE_5_2_PCT = {368: -0.48, 460: -3.30, 552: -3.46, 644: -3.13, 736: -5.18}
+# standard error of that difference from the table's own sds (3 runs each, unpaired) [%]
+TABLE_5_2_SE = {n: 100 * math.hypot(s_on2, s_v) / math.sqrt(3) / f_v for n, (s_on2, s_v, f_v) in {
+    368: (0.24, 0.11, 15.19), 460: (0.12, 0.27, 17.06), 552: (0.19, 0.09, 18.79),
+    644: (0.17, 0.13, 20.69), 736: (0.14, 0.31, 22.08)}.items()}
 TABLE_3_1 = {  # N: D_min, D_0, D_3, D_0/D_min, D_3/D_min, (D_0 - D_3)/D_min
     92: (5.33, 8.46, 7.99, 1.59, 1.50, 0.09), 184: (7.58, 11.10, 10.41, 1.47, 1.37, 0.09),
     276: (9.43, 13.21, 12.40, 1.40, 1.32, 0.09), 368: (10.90, 14.95, 13.96, 1.37, 1.28, 0.09),
@@ -105,10 +109,12 @@ FULL = Config("full", sizes=(92, 184, 276, 368, 460, 552, 644, 736), seeds=(1, 2
 QUICK = Config("quick", sizes=(92, 184, 368, 552, 736), seeds=(1,), seeds_368=(1, 2, 3),
                t52_sizes=(368,), t52_seeds=(1, 2), bi_r=(0.0, 0.25, 0.5, 0.75, 1.0),
                bi_seeds=(1,), bi_speed_mm_s=10.0, conv_steps=(4e-3, 1e-3, 2.5e-4),
-               reductions={"size": "QUICK: 1 seed (3 at N = 368), N = 92, 184, 368, 552, 736; "
-                                   "Verlet 4.13 + frozen tail",
-                           "t52": "QUICK: N = 368, 2 seeds",
-                           "bi": "QUICK: 5 R values, 1 seed, piston 10 mm/s (thesis 1 mm/s)"})
+               reductions={"size": "QUICK-S", "t52": "QUICK-V", "bi": "QUICK-B"})
+LEGEND = {"QUICK-S": "size family: 1 seed (3 at N = 368), N = 92, 184, 368, 552, 736 (thesis: 3 seeds, "
+                     "every N); Verlet 4.13 + frozen tail (thesis: O(N^2))",
+          "QUICK-V": "Table 5.2: N = 368 only, 2 paired seeds (thesis: 3 unpaired, 5 sizes)",
+          "QUICK-B": "bi-disperse a = 0.6: R = 0, 0.25, 0.5, 0.75, 1, 1 seed, piston 10 mm/s "
+                     "(thesis: 1 mm/s, 2+ runs, 23 R values)"}
 
 
 # ---------------------------------------------------------------------- runs
@@ -215,19 +221,24 @@ def convergence_order(steps: Sequence[float]) -> float:
 
 # --------------------------------------------------------------------- table
 def row(experiment: str, quantity: str, thesis: float, thesis_sd: float, ours: Sequence[float],
-        reduced: str = "", note: str = "") -> dict[str, Any]:
+        reduced: str = "", note: str = "", rel_sd_guess: float = math.nan,
+        compare: bool = True) -> dict[str, Any]:
     """One table row. ``agree``: |ours - thesis| <= 2 sqrt(sd_thesis^2 + sd_ours^2), with the
-    thesis' rounding (half its last digit) standing for sd_thesis where it prints none."""
+    thesis' rounding (half its last digit) standing for sd_thesis where it prints none, and,
+    for a single run, ``rel_sd_guess`` x ours (the seed spread of the same quantity at
+    N = 368) standing for sd_ours (column ``sd_used``). ``compare = False``: no verdict."""
     v = np.asarray([x for x in ours if x is not None and np.isfinite(x)], dtype=float)
     mean = float(v.mean()) if v.size else math.nan
     sd = float(v.std(ddof=1)) if v.size > 1 else math.nan
+    sd_used = sd if np.isfinite(sd) else abs(mean) * rel_sd_guess
     diff = mean - thesis
-    tol = 2 * math.hypot(thesis_sd, 0.0 if math.isnan(sd) else sd)
+    tol = 2 * math.hypot(thesis_sd, 0.0 if math.isnan(sd_used) else sd_used)
+    agree = (("yes" if abs(diff) <= tol else "no") if np.isfinite(diff) else "no") if compare else "-"
     return {"experiment": experiment, "quantity": quantity, "thesis": thesis,
-            "thesis_sd": thesis_sd, "ours": mean, "ours_sd": sd, "n_runs": int(v.size),
-            "diff": diff, "diff_pct": 100 * diff / thesis if thesis else math.nan,
-            "agree": bool(abs(diff) <= tol) if np.isfinite(diff) else False,
-            "reduced": reduced, "note": note}
+            "thesis_sd": thesis_sd, "ours": mean, "ours_sd": sd, "sd_used": sd_used,
+            "n_runs": int(v.size), "diff": diff,
+            "diff_pct": 100 * diff / thesis if thesis else math.nan,
+            "agree": agree, "reduced": reduced, "note": note}
 
 
 def half_digit(x: float, decimals: int = 2) -> float:
@@ -266,10 +277,15 @@ def bi_specs(cfg: Config) -> list[Spec]:
         for seed in cfg.bi_seeds:
             specs.append(Spec(f"bi_a060_R{r:.2f}_s{seed}", "runs/bidisperse/a060.nml",
                               {**base, "particles.mix_ratio": r, "particles.seed": seed}))
-    for r in (0.0, 0.5):
-        specs.append(Spec(f"bi_a060_R{r:.2f}_s1_tilt410", "runs/bidisperse/a060.nml",
-                          {**base, "particles.mix_ratio": r, "particles.seed": 1,
-                           "physics.tilt": "eq_4_10"}))
+    # tilt reading: eq. 4.10 is refused for the 3 mm magnets of a060 (E = 3.1 mm > D2: phi +
+    # theta > 90 deg, negative normal force), so it is measured at R = 0 of a060 (5 mm only)
+    # and on a075_5mm (3.75 mm small magnets), R = 0.5, both readings, same seed
+    specs.append(Spec("bi_a060_R0.00_s1_tilt410", "runs/bidisperse/a060.nml",
+                      {**base, "particles.mix_ratio": 0.0, "particles.seed": 1,
+                       "physics.tilt": "eq_4_10"}))
+    for tilt in ("eq_2_10", "eq_4_10"):
+        specs.append(Spec(f"bi_a075_R0.50_s1_{tilt}", "runs/bidisperse/a075_5mm.nml",
+                          {**base, "particles.seed": 1, "physics.tilt": tilt}))
     return specs
 
 
@@ -284,20 +300,26 @@ def build_table(cfg: Config, dirs: Mapping[str, Path], order: float) -> pd.DataF
     red = cfg.reductions
     size_of = lambda n: [m[k] for k in m if k.startswith(f"size_N{n:04d}_")]  # noqa: E731
 
+    r368 = size_of(368)
+    rel = lambda f: (float(np.std([f(x) for x in r368], ddof=1) / abs(np.mean([f(x) for x in r368])))  # noqa: E731
+                     if len(r368) > 1 else math.nan)
     # Table 3.2 + 5.1
     fit_n, fit_f = [], []
     for n, (f, sd) in TABLE_3_2.items():
         if n in cfg.sizes:
             vals = [x["F_max_N"] for x in size_of(n)]
-            rows.append(row("Table 3.2 (8.33 mm/s)", f"F_max [N], N = {n}", f, sd, vals, red["size"]))
+            rows.append(row("Table 3.2 (8.33 mm/s)", f"F_max [N], N = {n}", f, sd, vals, red["size"],
+                            rel_sd_guess=rel(lambda x: x["F_max_N"])))
             fit_n += [n] * len(vals)
             fit_f += vals
     if len(set(fit_n)) >= 3:
         fit = fit_linear(fit_n, fit_f)
         rows.append(row("Table 5.1", "fit slope [N/particle], N = 368..736", TABLE_5_1["slope"],
-                        half_digit(0, 4), [fit.slope], red["size"], f"+- {fit.slope_err:.4f} (fit)"))
+                        half_digit(0, 4), [fit.slope], red["size"], f"+- {fit.slope_err:.4f} (fit)",
+                        rel_sd_guess=fit.slope_err / abs(fit.slope)))
         rows.append(row("Table 5.1", "fit intercept [N]", TABLE_5_1["intercept"], half_digit(0),
-                        [fit.intercept], red["size"], f"+- {fit.intercept_err:.2f} (fit)"))
+                        [fit.intercept], red["size"], f"+- {fit.intercept_err:.2f} (fit)",
+                        rel_sd_guess=fit.intercept_err / abs(fit.intercept)))
     # Table 3.1
     names = ("D_min", "D_0 (start of compression)", "D_3 (end of expansion)", "D_0/D_min",
              "D_3/D_min", "(D_0 - D_3)/D_min (normalised hysteresis)")
@@ -305,22 +327,23 @@ def build_table(cfg: Config, dirs: Mapping[str, Path], order: float) -> pd.DataF
         if n not in cfg.sizes:
             continue
         runs_n = size_of(n)
-        ours = ([x["Dmin"] for x in runs_n], [x["D0"] for x in runs_n], [x["D3"] for x in runs_n],
-                [x["D0"] / x["Dmin"] for x in runs_n], [x["D3"] / x["Dmin"] for x in runs_n],
-                [(x["D0"] - x["D3"]) / x["Dmin"] for x in runs_n])
-        for name, t, o in zip(names, ref, ours):
-            rows.append(row("Table 3.1 (D_hat [D1])", f"{name}, N = {n}", t, half_digit(t), o, red["size"]))
+        fns = (lambda x: x["Dmin"], lambda x: x["D0"], lambda x: x["D3"], lambda x: x["D0"] / x["Dmin"],
+               lambda x: x["D3"] / x["Dmin"], lambda x: (x["D0"] - x["D3"]) / x["Dmin"])
+        for name, t, fn in zip(names, ref, fns):
+            rows.append(row("Table 3.1 (D_hat [D1])", f"{name}, N = {n}", t, half_digit(t),
+                            [fn(x) for x in runs_n], red["size"], rel_sd_guess=rel(fn)))
     # Table A.2
     for n, ref in TABLE_A_2.items():
         if n not in cfg.sizes:
             continue
         for (t, sd), k in zip(ref, ("n5", "n6", "n7")):
             rows.append(row("Table A.2 (max. compression)", f"{k}, N = {n}", t, max(sd, half_digit(t)),
-                            [x[k] for x in size_of(n)], red["size"]))
+                            [x[k] for x in size_of(n)], red["size"], rel_sd_guess=rel(lambda x, k=k: x[k])))
     # §3.2
     if "standard_563_s1" in m:
         rows.append(row("§3.2 (5.63 mm/s)", "F_max [N], N = 368, standard.nml", 15.26, 0.24,
-                        [m["standard_563_s1"]["F_max_N"]], "1 seed (thesis: 10)"))
+                        [m["standard_563_s1"]["F_max_N"]], "1 seed (thesis: 10)",
+                        rel_sd_guess=rel(lambda x: x["F_max_N"])))
     # Table 5.2
     for n in cfg.t52_sizes:
         ap = {s: m[f"t52_N{n:04d}_allpairs_s{s}"]["F_max_N"] for s in cfg.t52_seeds}
@@ -330,7 +353,7 @@ def build_table(cfg: Config, dirs: Mapping[str, Path], order: float) -> pd.DataF
             rows.append(row("Table 5.2", f"F_max O(N^2) [N], N = {n}", TABLE_3_2[n][0],
                             TABLE_3_2[n][1], list(ap.values()), red["t52"]))
         rows.append(row("Table 5.2", f"(F_Verlet - F_O(N^2))/F_Verlet [%], N = {n}",
-                        TABLE_5_2_PCT.get(n, math.nan), half_digit(0),
+                        TABLE_5_2_PCT.get(n, math.nan), TABLE_5_2_SE.get(n, math.nan),
                         [100 * (th[s] - ap[s]) / th[s] for s in cfg.t52_seeds], red["t52"],
                         "thesis lists: r_v 11.26, r_c 7.13, every listed pair"))
         rows.append(row("ours (no thesis value)", f"Verlet 4.13 + tail vs O(N^2) [%], N = {n}",
@@ -338,7 +361,7 @@ def build_table(cfg: Config, dirs: Mapping[str, Path], order: float) -> pd.DataF
                         "bias of the shipped numerics at H_f = 20 D1"))
     # §2.3.4
     rows.append(row("§2.3.4 (Fig. 2.8)", "observed order, Stormer-Verlet", 2.0, 0.05, [order],
-                    "" if cfg.name == "full" else "QUICK: 3 steps"))
+                    "" if cfg.name == "full" else "QUICK (3 steps)"))
     # chapter 4, a = 0.6
     bi = {r: [m[f"bi_a060_R{r:.2f}_s{s}"] for s in cfg.bi_seeds] for r in cfg.bi_r}
     if 1.0 in bi:
@@ -369,26 +392,30 @@ def build_table(cfg: Config, dirs: Mapping[str, Path], order: float) -> pd.DataF
         rows.append(row("Table 4.6 (t = 1)", "R_h mean, a = 1 (R = 0)", *TABLE_4_6["a=1 (R=0)"],
                         [x["R6_mean"] for x in bi[0.0]], red["bi"]))
     # tilt: eq. 4.10 reading against ours (eq. 2.10), same seed
-    for r in (0.0, 0.5):
-        alt, ref = m.get(f"bi_a060_R{r:.2f}_s1_tilt410"), m.get(f"bi_a060_R{r:.2f}_s1")
+    pairs = {"a = 0.6, R = 0": ("bi_a060_R0.00_s1", "bi_a060_R0.00_s1_tilt410"),
+             "a = 0.75 (5 mm), R = 0.5": ("bi_a075_R0.50_s1_eq_2_10", "bi_a075_R0.50_s1_eq_4_10")}
+    for label, (ref_name, alt_name) in pairs.items():
+        ref, alt = m.get(ref_name), m.get(alt_name)
         if alt is None or ref is None:
             continue
-        for k, unit in (("F_max_N", "N"), ("n6", "")):
-            rows.append(row("tilt eq. 4.10 vs eq. 2.10", f"{k} eq_4_10 (R = {r:.2f}) [{unit}]", ref[k], 0.0,
-                            [alt[k]], red["bi"], f"eq_2_10 (shipped) = {ref[k]:.4g}, same seed"))
+        for k, unit in (("F_max_N", "N"), ("n6", "1"), ("Psi6_local", "1")):
+            rows.append(row("tilt: eq. 4.10 reading (thesis column = ours, eq. 2.10)",
+                            f"{k} [{unit}], {label}", ref[k], 0.0, [alt[k]], red["bi"],
+                            "same seed; a = 0.6, R > 0: refused (E > D2, negative normal force)",
+                            compare=False))
     return pd.DataFrame(rows)
 
 
 def markdown(df: pd.DataFrame) -> str:
     """The table as GitHub markdown."""
     f = lambda v, spec: "-" if v is None or (isinstance(v, float) and math.isnan(v)) else format(v, spec)  # noqa: E731
-    lines = ["| experiment | quantity | thesis | +- | ours | seed sd | runs | diff | diff % | agree | reduced | note |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    lines = ["| experiment | quantity | thesis | +- | ours | seed sd | runs | diff | diff % | agree (2 sigma) "
+             "| reduced | note |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in df.to_dict("records"):
         lines.append(f"| {r['experiment']} | {r['quantity']} | {f(r['thesis'], '.4g')} | "
                      f"{f(r['thesis_sd'], '.2g')} | {f(r['ours'], '.4g')} | {f(r['ours_sd'], '.2g')} | "
                      f"{r['n_runs']} | {f(r['diff'], '+.3g')} | {f(r['diff_pct'], '+.1f')} | "
-                     f"{'yes' if r['agree'] else '**no**'} | {r['reduced']} | {r['note']} |")
+                     f"{'**no**' if r['agree'] == 'no' else r['agree']} | {r['reduced']} | {r['note']} |")
     return "\n".join(lines) + "\n"
 
 
@@ -417,8 +444,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     res = ROOT / "bench" / "results"
     res.mkdir(parents=True, exist_ok=True)
     table.to_csv(res / f"thesis{suffix}.csv", index=False)
+    engine_s = sum(float(json.loads((d / "run.json").read_text())["wall_time_s"]) for d in dirs.values())
     head = (f"bench/thesis.py {'--quick ' if args.quick else ''}(commit {git_commit()}, "
-            f"{time.perf_counter() - t0:.0f} s wall, {args.workers} worker(s))\n\n")
+            f"{time.perf_counter() - t0:.0f} s wall for this invocation with {args.workers} worker(s); "
+            f"{len(dirs)} engine runs totalling {engine_s:.0f} s of engine time, reused when unchanged)\n\n")
+    if args.quick:
+        head += "".join(f"- {k}: {v}\n" for k, v in LEGEND.items()) + "\n"
     (res / f"thesis{suffix}.md").write_text(head + markdown(table))
     print(head + markdown(table))
     return 0

@@ -1,6 +1,7 @@
 !> Thin f2py door: plain scalars and arrays only. Every routine returns a
 !> status code and message instead of stopping (a stop would end Python).
 module api
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use kinds, only: dp
   use errors, only: status_t
   use api_state, only: the_sim
@@ -8,26 +9,34 @@ module api
   use engine, only: sim_t, sim_load, sim_forces, sim_step, sim_energy, piston_energy, &
        time_pair_pass
   use model, only: piston_free
-  use runner, only: sim_execute, sim_resume, sim_check
+  use runner, only: sim_execute, sim_resume, sim_check, sim_resolve
+  use signals, only: install_handlers, restore_handlers
   use protocol, only: piston_at
   use pair_forces, only: dipole_kernel
   use neighbours, only: nlist_due
   use integrators, only: estimate_velocity, finish_velocity
   implicit none
   private
-  public :: run_scene, resume_run, check_scene, load_scene, n_particles, get_state, set_state, compute_forces, &
+  public :: run_scene, resume_run, check_scene, resolve_scene, load_scene, n_particles, get_state, &
+       set_state, compute_forces, &
        advance_steps, piston_state, model_groups, energies, kernel, precision_probe, &
        set_threads, list_audit, protocol_times, set_piston, bench_pairs
 
 contains
 
-  !> Run a scene exactly as the executable does, writing run directory `outdir`.
-  subroutine run_scene(path, outdir, code, message)
+  !> Run a scene exactly as the executable does, writing run directory
+  !> `outdir` (overwrite /= 0: replace a run found there). SIGINT/SIGTERM
+  !> during the run stop it at the next step with a checkpoint (code 5);
+  !> Python's handlers are restored afterwards.
+  subroutine run_scene(path, outdir, overwrite, code, message)
     character(len=*), intent(in) :: path, outdir
+    integer, intent(in) :: overwrite
     integer, intent(out) :: code
     character(len=1024), intent(out) :: message
     type(status_t) :: st
-    call sim_execute(path, outdir, .false., -1_i8, .false., st)
+    call install_handlers()
+    call sim_execute(path, outdir, .false., -1_i8, overwrite /= 0, st)
+    call restore_handlers()
     code = st%code
     message = st%msg
   end subroutine run_scene
@@ -38,7 +47,9 @@ contains
     integer, intent(out) :: code
     character(len=1024), intent(out) :: message
     type(status_t) :: st
+    call install_handlers()
     call sim_resume(rundir, .false., -1_i8, st)
+    call restore_handlers()
     code = st%code
     message = st%msg
   end subroutine resume_run
@@ -54,6 +65,19 @@ contains
     code = st%code
     message = st%msg
   end subroutine check_scene
+
+  !> The engine's one reading of a scene file, for pyorch: read `path`
+  !> (file-level and type checks, no range validation) and write every key
+  !> as the engine understood it to `outpath` (the resolved-scene format).
+  subroutine resolve_scene(path, outpath, code, message)
+    character(len=*), intent(in) :: path, outpath
+    integer, intent(out) :: code
+    character(len=1024), intent(out) :: message
+    type(status_t) :: st
+    call sim_resolve(path, outpath, st)
+    code = st%code
+    message = st%msg
+  end subroutine resolve_scene
 
   !> Load and validate a bed scene into the in-memory simulation (writes nothing).
   subroutine load_scene(path, code, message)
@@ -102,6 +126,12 @@ contains
       write(message, '(a,i0,a,i0)') 'set_state: got ', n, ' particles, the scene has ', the_sim%s%n
       return
     end if
+    if (.not. (all(ieee_is_finite(x)) .and. all(ieee_is_finite(y)) .and. &
+         all(ieee_is_finite(vx)) .and. all(ieee_is_finite(vy)))) then
+      code = 2
+      message = 'set_state: positions and velocities must be finite numbers'
+      return
+    end if
     the_sim%s%x = x(the_sim%s%id); the_sim%s%y = y(the_sim%s%id)
     the_sim%s%vx = vx(the_sim%s%id); the_sim%s%vy = vy(the_sim%s%id)
     the_sim%s%xp = the_sim%s%x; the_sim%s%yp = the_sim%s%y
@@ -144,11 +174,12 @@ contains
 
   subroutine piston_state(h, force, phase, n_steps)
     real(dp), intent(out) :: h, force
-    integer, intent(out) :: phase, n_steps
+    integer, intent(out) :: phase
+    integer(i8), intent(out) :: n_steps   !< 64-bit: long runs exceed 2^31 steps
     h = the_sim%s%piston_h
     force = the_sim%s%piston_force
     phase = the_sim%s%phase
-    n_steps = int(the_sim%p%n_steps)
+    n_steps = the_sim%p%n_steps
   end subroutine piston_state
 
   !> Dimensionless groups and SI unit scales of the loaded scene.
@@ -178,6 +209,11 @@ contains
     if (the_sim%m%piston_mode /= piston_free) then
       code = 2
       message = 'set_piston: the scene has no free piston (&protocol piston = ''free'')'
+      return
+    end if
+    if (.not. (ieee_is_finite(h) .and. ieee_is_finite(v))) then
+      code = 2
+      message = 'set_piston: h and v must be finite numbers'
       return
     end if
     the_sim%pst%y = h

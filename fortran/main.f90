@@ -2,7 +2,8 @@
 !>   magbed SCENE.nml [--out DIR] [--overwrite] [--check] [--quiet] [--stop-at STEP]
 !>   magbed --resume RUN_DIR [--quiet] [--stop-at STEP]
 !> Exit codes: 0 ok (or paused by --stop-at), 2 bad input (nothing written),
-!> 3 numerical guard, 4 I/O, 5 interrupted by SIGTERM/SIGINT (checkpoint written).
+!> 3 numerical guard, 4 I/O (a failed write, a refused checkpoint or run
+!> directory), 5 interrupted by SIGTERM/SIGINT (checkpoint written).
 program magbed
   use, intrinsic :: iso_fortran_env, only: error_unit, output_unit
   use, intrinsic :: iso_c_binding, only: c_int
@@ -20,7 +21,7 @@ program magbed
   end interface
   type(status_t) :: st
   character(len=4096) :: arg, path, dir, resume_dir
-  logical :: check, quiet, overwrite
+  logical :: check, quiet, overwrite, out_given
   integer :: i, nargs, ios
   integer(i8) :: stop_at, total
 
@@ -31,6 +32,7 @@ program magbed
   check = .false.
   quiet = .false.
   overwrite = .false.
+  out_given = .false.
   nargs = command_argument_count()
   i = 1
   do while (i <= nargs)
@@ -40,14 +42,17 @@ program magbed
       i = i + 1
       if (i > nargs) call usage('--out needs a directory')
       call get_command_argument(i, dir)
-    case ('--check')
-      check = .true.
+      if (len_trim(dir) == 0) call usage('--out needs a non-empty directory name')
+      out_given = .true.
     case ('--overwrite')
       overwrite = .true.
+    case ('--check')
+      check = .true.
     case ('--resume')
       i = i + 1
       if (i > nargs) call usage('--resume needs a run directory')
       call get_command_argument(i, resume_dir)
+      if (len_trim(resume_dir) == 0) call usage('--resume needs a non-empty directory name')
     case ('--stop-at')
       i = i + 1
       if (i > nargs) call usage('--stop-at needs a step number')
@@ -57,7 +62,8 @@ program magbed
     case ('--quiet', '-q')
       quiet = .true.
     case ('--help', '-h')
-      write(output_unit, '(a)') 'usage: magbed SCENE.nml [--out DIR] [--overwrite] [--check] [--quiet] [--stop-at STEP]'
+      write(output_unit, '(a)') 'usage: magbed SCENE.nml [--out DIR] [--overwrite] [--check] '// &
+           '[--quiet] [--stop-at STEP]'
       write(output_unit, '(a)') '       magbed --resume RUN_DIR [--quiet] [--stop-at STEP]'
       stop
     case default
@@ -70,6 +76,8 @@ program magbed
   if (len_trim(path) == 0 .and. len_trim(resume_dir) == 0) call usage('missing scene file')
   if (len_trim(path) > 0 .and. len_trim(resume_dir) > 0) &
        call usage('give a scene file or --resume RUN_DIR, not both')
+  if (len_trim(resume_dir) > 0 .and. (out_given .or. overwrite)) &
+       call usage('--resume continues RUN_DIR in place: no --out or --overwrite')
 
   if (len_trim(resume_dir) > 0) then
     call install_handlers()
@@ -95,7 +103,8 @@ contains
   subroutine usage(msg)
     character(len=*), intent(in) :: msg
     write(error_unit, '(a)') 'magbed: error: '//msg
-    write(error_unit, '(a)') 'usage: magbed SCENE.nml [--out DIR] [--overwrite] [--check] [--quiet] [--stop-at STEP]'
+    write(error_unit, '(a)') 'usage: magbed SCENE.nml [--out DIR] [--overwrite] [--check] '// &
+         '[--quiet] [--stop-at STEP]'
     write(error_unit, '(a)') '       magbed --resume RUN_DIR [--quiet] [--stop-at STEP]'
     flush(error_unit)
     call c_exit(int(exit_bad_input, c_int))

@@ -17,12 +17,12 @@ module methods
 contains
 
   !> Allocate the method that runs the scene at `path` (from its &scene kind).
-  subroutine method_for_scene(path, m, st)
+  subroutine method_for_scene(path, m, kind, st)
     character(len=*), intent(in) :: path
     class(method_t), allocatable, intent(out) :: m
+    character(len=kind_len), intent(out) :: kind
     type(status_t), intent(inout) :: st
-    character(len=kind_len) :: kind
-    call read_kind(path, kind, st)
+    call read_kind(path, kind_names, kind, st)
     if (st%code /= 0) return
     select case (trim(kind))
     case ('magnet_bed')

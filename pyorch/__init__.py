@@ -25,7 +25,13 @@ class SceneError(ValueError):
 
 
 class RunError(RuntimeError):
-    """A run failed (numerical guard, I/O): the message is the engine's reason."""
+    """A run failed (numerical guard, I/O, interrupted): the message is the
+    engine's reason, ``code`` its exit code (3 guard, 4 I/O, 5 interrupted),
+    which ``pyorch`` exits with; 3 when not given (pyorch's own checks)."""
+
+    def __init__(self, message: str, code: int = 3):
+        super().__init__(message)
+        self.code = code
 
 
 def __getattr__(name: str) -> Any:

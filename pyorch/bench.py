@@ -173,7 +173,7 @@ def run_setting(base: Scene, setting: Setting, seed: int, out_dir: Path,
     scene = base.with_overrides(dict(setting.overrides(), **{"particles.seed": seed}))
     row: dict[str, Any] = dict(setting.d, seed=seed, threads=threads, label=setting.label())
     try:
-        r = run(scene, out_dir / name, progress=False, threads=threads)
+        r = run(scene, out_dir / name, progress=False, threads=threads, overwrite=True)
         row.update(measure(r))
     except Exception as exc:  # a failed setting is a measured outcome (e.g. unstable dt)
         row.update(status=f"failed: {exc}")

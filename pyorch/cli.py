@@ -1,6 +1,8 @@
 """Command line: ``pyorch run|check|plot``.
 
-    pyorch run SCENE.nml [--out DIR] [--set group.key=value ...] [--door exe|f2py] [--no-plots]
+    pyorch run SCENE.nml [--out DIR] [--overwrite] [--set group.key=value ...] [--door exe|f2py]
+               [--no-plots]
+    pyorch run --resume RUN_DIR
     pyorch check SCENE.nml [--set ...]
     pyorch plot RUN_DIR [--out DIR] [--no-structure]
     pyorch analyze RUN_DIR [--out DIR]
@@ -25,7 +27,9 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("scene", type=Path, nargs="?", help="scene namelist (omit with --resume)")
     r.add_argument("--resume", type=Path, default=None, metavar="RUN_DIR",
                    help="continue RUN_DIR from its last checkpoint")
-    r.add_argument("--out", type=Path, default=None, help="run directory (default runs/out/<scene>)")
+    r.add_argument("--out", type=str, default=None, help="run directory (default runs/out/<scene>)")
+    r.add_argument("--overwrite", action="store_true",
+                   help="replace a run found in the run directory (its files are removed first)")
     r.add_argument("--set", dest="overrides", action="append", default=[], metavar="GROUP.KEY=VALUE")
     r.add_argument("--door", choices=["exe", "f2py"], default="exe")
     r.add_argument("--no-plots", action="store_true")
@@ -65,7 +69,18 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Exit codes: 0 ok, 2 bad input, then the engine's own (3 numerical guard,
+    4 I/O or refused run directory/checkpoint, 5 interrupted with a
+    checkpoint), 1 internal, 130 Ctrl-C outside a run."""
     args = _parser().parse_args(argv)
+    try:
+        return _main(args)
+    except KeyboardInterrupt:
+        print("pyorch: interrupted", file=sys.stderr)
+        return 130
+
+
+def _main(args: argparse.Namespace) -> int:
     try:
         if args.cmd == "run":
             return _cmd_run(args)
@@ -103,7 +118,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     except RunError as exc:
         print(f"pyorch: error: {exc}", file=sys.stderr)
-        return 3
+        return exc.code
     return 1
 
 
@@ -115,8 +130,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from pyorch.run import resume
 
     if args.resume is not None:
-        if args.scene is not None or args.overrides:
-            raise SceneError("--resume RUN_DIR continues a run as it was: no scene or --set")
+        if args.scene is not None or args.overrides or args.out is not None or args.overwrite:
+            raise SceneError("--resume RUN_DIR continues a run as it was: no scene, --set, "
+                             "--out or --overwrite")
         result = resume(args.resume, door=args.door, progress=not args.quiet)
         out = args.resume
         meta = result.meta
@@ -128,12 +144,18 @@ def _cmd_run(args: argparse.Namespace) -> int:
         return 0
     if args.scene is None:
         raise SceneError("pyorch run: give a scene file (or --resume RUN_DIR)")
-    scene = Scene.read(args.scene).with_overrides(args.overrides)
-    scene, choice = apply_target(scene)
+    if args.out is not None and not args.out.strip():
+        raise SceneError("pyorch run: --out needs a non-empty directory name")
+    scene = Scene.read(args.scene)
+    tuned, choice = apply_target(scene.with_overrides(args.overrides))
     if choice:
         print(choice)
-    out = args.out or Path("runs") / "out" / args.scene.stem
-    result = run(scene, out, door=args.door, progress=not args.quiet)
+    out = Path(args.out) if args.out is not None else Path("runs") / "out" / args.scene.stem
+    if args.overrides or choice:
+        result = run(tuned, out, door=args.door, progress=not args.quiet, overwrite=args.overwrite)
+    else:  # the user's file as it is: the engine reads it and names it in any message
+        result = run(args.scene, out, door=args.door, progress=not args.quiet,
+                     overwrite=args.overwrite)
     meta = result.meta
     print(f"{out}: {meta['status']}, {meta['steps_done']} steps, "
           f"{meta['wall_time_s']:.2f} s ({1e6 * meta['wall_time_per_step_s']:.1f} us/step)")

@@ -43,9 +43,14 @@ def read_dat(path: str | Path) -> pd.DataFrame:
     A run killed hard (kill -9) may leave a torn last line: it is dropped,
     as a resume would drop it (the file is cut back to the last checkpoint).
     """
+    from pyorch import RunError
+
     path = Path(path)
     names, units, desc = read_header(path)
     data = path.read_bytes()
+    if b"\0" in data:
+        raise RunError(f"{path}: broken file: it holds NUL bytes (padded by a failed write "
+                       f"or resume)", code=4)
     end = data.rfind(b"\n")
     data = data[: end + 1]
     df = pd.read_csv(_io.BytesIO(data), sep=r"\s+", comment="#", header=None, names=names,
@@ -59,9 +64,27 @@ def read_dat(path: str | Path) -> pd.DataFrame:
 
 
 def read_run_json(run_dir: str | Path) -> dict[str, Any]:
-    """Run metadata: status, steps, wall time, unit scales, groups."""
-    with open(Path(run_dir) / "run.json", encoding="utf-8") as fh:
-        return json.load(fh)
+    """Run metadata: status, steps, wall time, unit scales, groups.
+
+    A missing, empty or unreadable run.json (e.g. the disk filled up) raises
+    RunError (code 4) in one line naming the file."""
+    from pyorch import RunError
+
+    path = Path(run_dir) / "run.json"
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise RunError(f"{run_dir}: not a run directory (no run.json)", code=4) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise RunError(f"{path}: broken run directory: {exc}", code=4) from None
+    try:
+        meta = json.loads(text)
+    except json.JSONDecodeError as exc:
+        what = "empty" if not text.strip() else f"not JSON ({exc})"
+        raise RunError(f"{path}: broken run directory: run.json is {what}", code=4) from None
+    if not isinstance(meta, dict):
+        raise RunError(f"{path}: broken run directory: run.json is not an object", code=4)
+    return meta
 
 
 def piston(run_dir: str | Path) -> pd.DataFrame:

@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import sysconfig
 import tempfile
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Iterable, Mapping
@@ -15,7 +17,7 @@ from typing import Any, Iterable, Mapping
 import pandas as pd
 
 from pyorch import RunError, SceneError, io
-from pyorch.scene import Scene
+from pyorch.scene import Scene, name_scene
 
 EXIT_REASONS = {2: "bad input", 3: "numerical guard", 4: "I/O error", 1: "internal error",
                 5: "interrupted (checkpoint written, resumable)"}
@@ -31,7 +33,7 @@ def engine_executable() -> Path:
     found = shutil.which("magbed")
     if found:
         return Path(found)
-    raise RunError("magbed executable not found: install the package (pip install .)")
+    raise RunError("magbed executable not found: install the package (pip install .)", code=1)
 
 
 @dataclass(frozen=True)
@@ -42,6 +44,7 @@ class Run:
 
     @property
     def meta(self) -> dict[str, Any]:
+        """run.json (RunError, code 4, if missing or broken)."""
         return io.read_run_json(self.dir)
 
     def piston(self) -> pd.DataFrame:
@@ -64,27 +67,58 @@ def _scene_of(scene: Scene | str | Path, overrides: Iterable[str] | Mapping[str,
     return sc
 
 
+def _out_dir(out: str | Path) -> Path:
+    if str(out).strip() == "":
+        raise RunError("the output directory name is empty", code=2)
+    return Path(out)
+
+
 def run(scene: Scene | str | Path, out: str | Path,
         overrides: Iterable[str] | Mapping[str, Any] | None = None,
-        door: str = "exe", progress: bool = True, threads: int | None = None) -> Run:
+        door: str = "exe", progress: bool = True, threads: int | None = None,
+        overwrite: bool = False) -> Run:
     """Run a scene into directory ``out`` and return the Run.
 
     door = "exe" launches the executable with a progress bar; "f2py" runs in
     this process. A refused scene raises SceneError before anything is
-    written; a failed run raises RunError with the engine's reason (the run
-    directory then holds run.json with status 'failed: ...').
+    written, naming the user's file; a failed run raises RunError with the
+    engine's reason and exit code (``exc.code``; the run directory then holds
+    run.json with status 'failed: ...'). A directory holding another run is
+    refused unless ``overwrite`` (which removes that run's files first).
+    SIGINT/SIGTERM stop the engine at its next step with a checkpoint
+    (RunError with code 5; resume with :func:`resume`).
     """
+    if door not in ("exe", "f2py"):
+        raise ValueError(f"door must be 'exe' or 'f2py', got {door!r}")
+    out = _out_dir(out)
+    if not isinstance(scene, Scene) and not overrides:
+        # the user's own file: the engine reads it (messages name it), no copy
+        path = Path(scene)
+        if not path.is_file():
+            raise SceneError(f"{path}: scene file not found")
+        _dispatch(path, out, door, progress, threads, overwrite, None)
+        return Run(out)
     sc = _scene_of(scene, overrides)
-    out = Path(out)
     with tempfile.TemporaryDirectory() as tmp:
         nml = sc.write(Path(tmp) / (sc.source.name if sc.source else "scene.nml"))
-        if door == "f2py":
-            _run_f2py(nml, out)
-        elif door == "exe":
-            _run_exe(nml, out, progress, threads)
-        else:
-            raise ValueError(f"door must be 'exe' or 'f2py', got {door!r}")
+        _dispatch(nml, out, door, progress, threads, overwrite, sc)
     return Run(out)
+
+
+def _dispatch(nml: Path, out: Path, door: str, progress: bool, threads: int | None,
+              overwrite: bool, sc: Scene | None) -> None:
+    try:
+        if door == "f2py":
+            _run_f2py(nml, out, overwrite)
+        else:
+            _run_exe(nml, out, progress, threads, overwrite)
+    except (SceneError, RunError) as exc:
+        if sc is None:
+            raise
+        text = name_scene(str(exc), nml, sc)
+        if isinstance(exc, SceneError):
+            raise SceneError(text) from None
+        raise RunError(text, code=exc.code) from None
 
 
 def resume(run_dir: str | Path, door: str = "exe", progress: bool = True,
@@ -92,28 +126,35 @@ def resume(run_dir: str | Path, door: str = "exe", progress: bool = True,
     """Continue an interrupted, paused or killed run from its last checkpoint.
 
     The output files are cut back to the checkpoint and continued, so the
-    finished directory is byte-identical to an uninterrupted run.
+    finished directory is byte-identical to an uninterrupted run. The engine
+    refuses (RunError, code 4) a checkpoint that is corrupted, truncated, of
+    another scene or engine version, and output files shorter than the
+    checkpoint recorded; a run directory without checkpoint starts at step 0.
     """
-    run_dir = Path(run_dir)
-    if not (run_dir / "checkpoint.bin").is_file():
-        raise RunError(f"{run_dir}: no checkpoint.bin to resume from")
+    run_dir = _out_dir(run_dir)
+    if not (run_dir / "scene.nml").is_file():
+        raise RunError(f"{run_dir}: not a run directory (no scene.nml to resume from)", code=4)
     if door == "f2py":
         from pyorch import _engine
 
         code, msg = _engine.api.resume_run(str(run_dir))
-        _raise_for(code, (msg.decode() if isinstance(msg, bytes) else str(msg)).strip())
+        _raise_for(code, _text(msg))
     else:
         _launch([str(engine_executable()), "--resume", str(run_dir)], run_dir, progress, threads)
     return Run(run_dir)
 
 
-def _run_f2py(nml: Path, out: Path) -> None:
+def _text(msg: Any) -> str:
+    return (msg.decode(errors="replace") if isinstance(msg, bytes) else str(msg)).strip()
+
+
+def _run_f2py(nml: Path, out: Path, overwrite: bool) -> None:
     from pyorch import _engine
 
-    out.parent.mkdir(parents=True, exist_ok=True)
-    code, msg = _engine.api.run_scene(str(nml), str(out))
-    text = (msg.decode() if isinstance(msg, bytes) else str(msg)).strip()
-    _raise_for(code, text)
+    if out.parent != Path(""):
+        out.parent.mkdir(parents=True, exist_ok=True)
+    code, msg = _engine.api.run_scene(str(nml), str(out), int(overwrite))
+    _raise_for(code, _text(msg))
 
 
 def _raise_for(code: int, text: str) -> None:
@@ -121,12 +162,42 @@ def _raise_for(code: int, text: str) -> None:
         return
     if code == 2:
         raise SceneError(text)
-    raise RunError(f"{EXIT_REASONS.get(code, 'error')} (exit {code}): {text}")
+    raise RunError(f"{EXIT_REASONS.get(code, 'error')} (exit {code}): {text}", code=code)
 
 
-def _run_exe(nml: Path, out: Path, progress: bool, threads: int | None) -> None:
+def _run_exe(nml: Path, out: Path, progress: bool, threads: int | None, overwrite: bool) -> None:
     out.parent.mkdir(parents=True, exist_ok=True)
-    _launch([str(engine_executable()), str(nml), "--out", str(out)], out, progress, threads)
+    cmd = [str(engine_executable()), str(nml), "--out", str(out)]
+    if overwrite:
+        cmd.append("--overwrite")
+    _launch(cmd, out, progress, threads)
+
+
+class _Forward:
+    """While the engine runs, SIGINT/SIGTERM to this process are passed on to
+    it (the engine then writes its checkpoint and exits with code 5); the
+    previous handlers come back afterwards. Only the main thread can install
+    handlers: elsewhere this does nothing."""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __init__(self, proc: subprocess.Popen) -> None:
+        self.proc = proc
+        self.old: dict[int, Any] = {}
+
+    def _handler(self, signum: int, frame: Any) -> None:
+        if self.proc.poll() is None:
+            self.proc.send_signal(signum)
+
+    def __enter__(self) -> "_Forward":
+        if threading.current_thread() is threading.main_thread():
+            for s in self.SIGNALS:
+                self.old[s] = signal.signal(s, self._handler)
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        for s, h in self.old.items():
+            signal.signal(s, h)
 
 
 def _launch(cmd: list[str], out: Path, progress: bool, threads: int | None) -> None:
@@ -135,7 +206,7 @@ def _launch(cmd: list[str], out: Path, progress: bool, threads: int | None) -> N
         env["OMP_NUM_THREADS"] = str(threads)
     bar = None
     with subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                          errors="replace", env=env) as proc:
+                          errors="replace", env=env) as proc, _Forward(proc):
         assert proc.stdout is not None and proc.stderr is not None
         for line in proc.stdout:
             parts = line.split()
@@ -156,4 +227,7 @@ def _launch(cmd: list[str], out: Path, progress: bool, threads: int | None) -> N
             bar.update(bar.total - bar.n)
         bar.close()
     text = err.strip().removeprefix("magbed: error: ")
+    if code < 0:
+        raise RunError(f"the engine was killed by signal {-code} (resume with pyorch run "
+                       f"--resume {out})", code=128 - code)
     _raise_for(code, text)

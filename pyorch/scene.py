@@ -1,14 +1,25 @@
-"""Scenes as Python objects, written as namelists with f90nml.
+"""Scenes as Python objects.
 
 A scene is a namelist file with the groups &scene, &material (SI units),
 &cell, &particles, &physics, &integration, &protocol, &output (lengths in D1,
-times in T = sqrt(D1/g), speeds in D1/T). The engine is the one source of
-truth for validation: :func:`validate` loads the scene through the f2py module
-and raises :class:`pyorch.SceneError` with the engine's one-line message.
+times in T = sqrt(D1/g), speeds in D1/T).
+
+One reading of a scene file, shared by both doors: pyorch never parses a
+user's file itself. :meth:`Scene.read` asks the engine (f2py door) to read the
+file, with the engine's own checks (groups, keys, types, finite values,
+quoting), and to write it back in the resolved-scene format (every key, one
+group each, strings quoted with doubled quotes, reals with 17 digits), the
+format the executable writes into every run directory; only that file is
+read with f90nml. The engine is also the one source of truth for the ranges:
+:func:`validate` loads the scene through the f2py module and raises
+:class:`pyorch.SceneError` with the engine's one-line message.
 """
 from __future__ import annotations
 
 import copy
+import functools
+import math
+import re
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -23,27 +34,134 @@ from pyorch.kinds import KINDS
 #: every namelist group of every kind, in the order they are written
 GROUPS = tuple(dict.fromkeys(g for k in KINDS.values() for g in k.groups))
 
+_KEY = re.compile(r"^([a-z_][a-z0-9_]*)(?:\((\d+)\))?$")
+# one value token: a quoted string (quotes doubled inside) or a bare word
+_TOKEN = re.compile(r"""\s*('(?:[^'\n]|'')*'|"(?:[^"\n]|"")*"|[^\s,/&!=()'"*]+)\s*(,|$)""")
 
-def parse_override(text: str) -> tuple[str, str, Any]:
-    """Parse ``group.key=value`` (value in Fortran namelist syntax).
+
+def _engine_message(msg: Any) -> str:
+    return (msg.decode(errors="replace") if isinstance(msg, bytes) else str(msg)).strip()
+
+
+def resolve_file(path: str | Path) -> f90nml.Namelist:
+    """The engine's reading of a scene file, as a namelist of every key.
+
+    Raises SceneError with the engine's message (naming ``path``, the line,
+    group and key) for anything the engine would refuse to read.
+    """
+    from pyorch import _engine  # compiled module
+
+    path = Path(path)
+    if not path.is_file():
+        raise SceneError(f"{path}: scene file not found")
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "resolved.nml"
+        code, msg = _engine.api.resolve_scene(str(path), str(out))
+        if code != 0:
+            raise SceneError(_engine_message(msg))
+        return f90nml.read(str(out))
+
+
+@functools.lru_cache(maxsize=8)
+def default_keys(kind: str = "magnet_bed") -> dict[str, dict[str, Any]]:
+    """group -> key -> default value of a scene kind, as the engine defines them."""
+    from pyorch import kinds
+
+    kinds.get(kind)  # SceneError naming the allowed kinds
+    with tempfile.TemporaryDirectory() as tmp:
+        p = Path(tmp) / "kind.nml"
+        p.write_text(f"&scene kind = '{kind}' /\n")
+        nml = resolve_file(p)
+    return {g: dict(v) for g, v in nml.items()}
+
+
+def _split_key(group: str, key: str, where: str,
+               kind: str = "magnet_bed") -> tuple[str, int | None]:
+    """key or key(i) -> (key, i or None); the key must exist in the group."""
+    m = _KEY.match(key)
+    if not m:
+        raise SceneError(f"{where}: {key!r} is not a key name (expected e.g. n or "
+                         f"species_diameter(2))")
+    name, idx = m.group(1), (int(m.group(2)) if m.group(2) else None)
+    keys = default_keys(kind).get(group, {})
+    if name not in keys:
+        raise SceneError(f"{where}: unknown key &{group} {name} (keys: {', '.join(keys)})")
+    default = keys[name]
+    if idx is not None:
+        if not isinstance(default, list):
+            raise SceneError(f"{where}: &{group} {name} is not an array")
+        if not 1 <= idx <= len(default):
+            raise SceneError(f"{where}: &{group} {name}({idx}): index out of range "
+                             f"[1, {len(default)}]")
+    return name, idx
+
+
+def _check_value(value: Any, where: str) -> None:
+    """A value pyorch can write as the namelist value the user meant."""
+    items = value if isinstance(value, list) else [value]
+    if not items:
+        raise SceneError(f"{where}: no value")
+    for v in items:
+        if v is None:
+            raise SceneError(f"{where}: no value (give a value or leave the key out)")
+        if isinstance(v, float) and not math.isfinite(v):
+            raise SceneError(f"{where}: {v!r} must be a finite number")
+        if not isinstance(v, (bool, int, float, str)):
+            raise SceneError(f"{where}: {v!r} is not a namelist value "
+                             f"(number, logical or string)")
+
+
+def _check_group(group: str, kind: str, where: str) -> None:
+    from pyorch import kinds
+
+    allowed = kinds.get(kind).groups
+    if group not in allowed:
+        raise SceneError(f"{where}: unknown group &{group} for kind {kind!r} "
+                         f"(allowed: {', '.join(allowed)})")
+
+
+def parse_override(text: str, kind: str = "magnet_bed") -> tuple[str, str, Any]:
+    """Parse ``group.key=value`` or ``group.key(i)=value`` (value in Fortran
+    namelist syntax: one value, or a comma-separated list for an array).
 
     >>> parse_override("particles.n=92")
     ('particles', 'n', 92)
     >>> parse_override("physics.wall_law='infinite'")
     ('physics', 'wall_law', 'infinite')
     """
+    where = f"--set {text!r}"
     if "=" not in text or "." not in text.split("=", 1)[0]:
-        raise SceneError(f"--set {text!r}: expected group.key=value, e.g. particles.n=92")
+        raise SceneError(f"{where}: expected group.key=value, e.g. particles.n=92")
     lhs, value = text.split("=", 1)
     group, key = (s.strip().lower() for s in lhs.split(".", 1))
-    if group not in GROUPS:
-        raise SceneError(f"--set {text!r}: unknown group &{group} (allowed: {', '.join(GROUPS)})")
+    _check_group(group, kind, where)
+    name, idx = _split_key(group, key, where, kind)
+    tokens = _tokens(value, where)
     try:
-        nml = f90nml.reads(f"&{group}\n {key} = {value}\n/\n")
+        nml = f90nml.reads(f"&{group}\n {name} = {', '.join(tokens)}\n/\n")
     except Exception as exc:  # f90nml raises several types on bad syntax
-        raise SceneError(f"--set {text!r}: cannot parse value {value!r}: {exc}") from exc
-    parsed = nml[group][key]
+        raise SceneError(f"{where}: cannot parse value {value!r}: {exc}") from exc
+    parsed = nml[group][name]
+    _check_value(parsed, where)
     return group, key, parsed
+
+
+def _tokens(value: str, where: str) -> list[str]:
+    """Split a --set value into namelist value tokens; anything that is not a
+    plain value (a '/', '&', '!', '=', a repeat count, an empty value) is refused."""
+    rest, out = value.strip(), []
+    if not rest:
+        raise SceneError(f"{where}: no value (give a value, e.g. particles.n=92)")
+    while rest:
+        m = _TOKEN.match(rest)
+        if not m:
+            raise SceneError(f"{where}: {value!r} is not one value or a comma-separated list "
+                             f"of values (no '/', '&', '!', '=' or r*value outside quotes)")
+        out.append(m.group(1))
+        rest = rest[m.end():].strip()
+        if m.group(2) == "," and not rest:
+            raise SceneError(f"{where}: empty value after ','")
+    return out
 
 
 @dataclass
@@ -55,14 +173,9 @@ class Scene:
 
     @classmethod
     def read(cls, path: str | Path) -> "Scene":
-        """Load a namelist file (comments are dropped, values kept exactly)."""
+        """The engine's reading of a scene file: every key, defaults filled in."""
         path = Path(path)
-        if not path.is_file():
-            raise SceneError(f"{path}: scene file not found")
-        try:
-            nml = f90nml.read(str(path))
-        except Exception as exc:
-            raise SceneError(f"{path}: not a readable namelist: {exc}") from exc
+        nml = resolve_file(path)
         groups = {g: dict(v) for g, v in nml.items()}
         return cls(groups=groups, source=path)
 
@@ -73,20 +186,46 @@ class Scene:
         return self.groups.get(group, {}).get(key, default)
 
     def set(self, group: str, key: str, value: Any) -> "Scene":
-        """Set one key (returns self, so calls chain)."""
-        self.groups.setdefault(group.lower(), {})[key.lower()] = value
+        """Set one key, or one element with ``key(i)`` (returns self, so calls chain)."""
+        group, key = group.lower(), key.lower()
+        m = _KEY.match(key)
+        if m and m.group(2):
+            name, idx = m.group(1), int(m.group(2))
+            cur = self.groups.setdefault(group, {}).get(name)
+            if not isinstance(cur, list):
+                kind = str(self.get("scene", "kind", "magnet_bed"))
+                cur = list(default_keys(kind).get(group, {}).get(name, [])) or [None] * idx
+            cur = list(cur) + [None] * max(0, idx - len(cur))
+            if isinstance(value, list):
+                cur[idx - 1: idx - 1 + len(value)] = value
+            else:
+                cur[idx - 1] = value
+            self.groups[group][name] = cur
+            return self
+        self.groups.setdefault(group, {})[key] = value
         return self
 
     def with_overrides(self, overrides: Iterable[str] | Mapping[str, Any]) -> "Scene":
-        """A copy with ``group.key=value`` strings or a {"group.key": value} map applied."""
+        """A copy with ``group.key=value`` strings or a {"group.key": value} map applied.
+
+        Keys are checked against the engine's keys (``key(i)`` sets one array
+        element); an empty or non-finite value is refused, as the engine
+        would refuse it in a file."""
         new = self.copy()
+        kind = str(self.get("scene", "kind", "magnet_bed"))
         if isinstance(overrides, Mapping):
             for dotted, value in overrides.items():
-                group, key = dotted.lower().split(".", 1)
+                where = f"override {dotted!r}"
+                if "." not in dotted:
+                    raise SceneError(f"{where}: expected 'group.key'")
+                group, key = (s.strip() for s in dotted.lower().split(".", 1))
+                _check_group(group, kind, where)
+                _split_key(group, key, where, kind)
+                _check_value(value, where)
                 new.set(group, key, value)
         else:
             for text in overrides:
-                new.set(*parse_override(text))
+                new.set(*parse_override(text, kind))
         return new
 
     def namelist(self) -> f90nml.Namelist:
@@ -104,6 +243,19 @@ class Scene:
         path = Path(path)
         self.namelist().write(str(path), force=True)
         return path
+
+    def label(self) -> str:
+        """How messages name this scene: its file, marked when changed in memory."""
+        return f"{self.source} (with overrides)" if self.source else "<scene built in Python>"
+
+
+def name_scene(text: str, tmp_path: str | Path, scene: "Scene | None") -> str:
+    """An engine message about a temporary copy, naming the user's scene instead.
+
+    The line number of a temporary copy means nothing to the user: it is dropped."""
+    tmp = re.escape(str(tmp_path))
+    label = scene.label() if scene is not None else "scene"
+    return re.sub(rf"{tmp}(: line \d+)?", label, text)
 
 
 def validate(scene: Scene | str | Path) -> dict[str, Any]:
@@ -125,8 +277,10 @@ def validate(scene: Scene | str | Path) -> dict[str, Any]:
         shown = str(getattr(scene, "source", None) or path)
         code, msg, n_steps = _engine.api.check_scene(str(path))
         if code != 0:
-            text = msg.decode() if isinstance(msg, bytes) else str(msg)
-            raise SceneError(text.strip().replace(str(path), shown))
+            text = _engine_message(msg)
+            if isinstance(scene, Scene):
+                text = name_scene(text, path, scene)
+            raise SceneError(text)
         info: dict[str, Any] = {"n_steps": int(n_steps)}
         sc = scene if isinstance(scene, Scene) else Scene.read(path)
         info["kind"] = str(sc.get("scene", "kind", ""))

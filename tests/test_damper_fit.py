@@ -342,7 +342,8 @@ def test_identify_record_rest_height_only_from_a_settled_state() -> None:
     t = np.linspace(0.0, 300.0, 3001)
     ringing = _damped(t, 0.005, 0.26, 52.3, 10.0)   # still rings at the end
     out = dmp.identify_record(t, ringing)
-    assert np.isnan(out["H_rest"]) and "not settled" in out["reason"]
+    assert np.isnan(out["H_rest"]) and "rest height not settled" in out["reason"]
+    assert out["identified"] == 1.0 and out["zeta"] == pytest.approx(0.005, rel=0.02)
     given = dmp.identify_record(t, ringing, H_rest=52.3)
     assert given["H_rest"] == 52.3
 

@@ -118,7 +118,7 @@ def test_checkpoint_of_another_kind_refused(tmp_path: Path) -> None:
 @pytest.mark.parametrize("key, value, needle", [
     ("oscillator.zeta", 1.0, "zeta"),
     ("oscillator.dt", 0.0, "dt"),
-    ("oscillator.omega", float("nan"), "omega"),
+    ("oscillator.omega", "-1.0", "omega"),
     ("oscillator.integrator", "'rk4'", "integrator"),
     ("oscillator.n", 0, "n"),
 ])
@@ -129,6 +129,16 @@ def test_bad_input_names_key(tmp_path: Path, key: str, value: object, needle: st
     with pytest.raises(SceneError, match=f"&oscillator {needle} "):
         run(sc, out, progress=False)
     assert not out.exists()
+
+
+def test_nan_in_the_file_names_the_key(tmp_path: Path) -> None:
+    """A NaN typed into the file (not through pyorch, which refuses it earlier) is the
+    engine's to refuse, naming the group and key."""
+    path = tmp_path / "nan.nml"
+    path.write_text(SCENE.read_text().replace("omega = 6.283185307179586", "omega = NaN"))
+    p = subprocess.run([str(engine_executable()), str(path), "--check"], capture_output=True,
+                       text=True)
+    assert p.returncode == 2 and "&oscillator omega = NaN" in p.stderr, p.stderr
 
 
 def test_unknown_kind_refused(tmp_path: Path) -> None:

@@ -132,12 +132,12 @@ def test_small_particle_weight_and_wall(door, make_scene):
     assert fx[1] == pytest.approx(a**2 * side[1] + pair, rel=1e-12)
 
 
-@pytest.mark.parametrize("reading", ["eq_2_10", "eq_4_10"])
-def test_normal_force_of_a_small_magnet_eq_4_11(door, make_scene, reading):
+@pytest.mark.parametrize("reading,a", [("eq_2_10", 0.6), ("eq_4_10", 0.75)])
+def test_normal_force_of_a_small_magnet_eq_4_11(door, make_scene, reading, a):
     """Small magnet (D2 = 3 mm) between two big ones, sliding: friction = mu_d N_i.
     tilt = 'eq_2_10': theta = arcsin(E/sqrt(D^2+eps^2)) - phi (shipped); 'eq_4_10':
-    without the - phi, as eq. 4.10 is printed."""
-    a, r = 0.6, 2.0
+    without the - phi, as eq. 4.10 is printed (D2 = 3.75 mm: it needs E < D2)."""
+    r = 2.0
     ov = dict(BIG_SMALL, **{"particles.n": 3, "particles.mix_ratio": 0.3,
                             "physics.gravity": True, "physics.dry_friction": "first_order",
                             "particles.species_diameter": [1.0, a], "physics.tilt": reading})

@@ -121,10 +121,12 @@ def test_resume_through_the_f2py_door(straight, tmp_path):
     assert_identical(ref, tmp_path / "r")
 
 
-def test_resume_without_checkpoint_is_refused(tmp_path):
+def test_resume_of_a_directory_without_run_is_refused(tmp_path):
     (tmp_path / "r").mkdir()
-    with pytest.raises(RunError, match="no checkpoint.bin"):
+    with pytest.raises(RunError, match="not a run directory"):
         resume(tmp_path / "r", progress=False)
+    p = magbed("--resume", str(tmp_path / "r"))
+    assert p.returncode == 4 and "not a run directory (no scene.nml)" in p.stderr
 
 
 # ---- guards -----------------------------------------------------------------

@@ -247,7 +247,7 @@ def test_plots_and_tables(tmp_path: Path) -> None:
     ("rods.dt", 1.5, "&rods dt = 1.5"),            # dt > tau = 1: Nanbu-Babovsky refuses
     ("collisions.e_v", 1.2, "&collisions e_v"),
     ("rods.n", 1, "&rods n"),
-    ("mean_field.alpha", float("nan"), "&mean_field alpha"),
+    ("mean_field.alpha", -1.0, "&mean_field alpha"),
     ("mean_field.potential", "'harmonic'", "&mean_field potential"),
     ("rods.inertia_model", "'sphere'", "&rods inertia_model"),
     ("mean_field.onsager_force", "'fft'", "&mean_field onsager_force"),

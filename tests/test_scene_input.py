@@ -40,7 +40,7 @@ BAD = [
     ({"particles.mix_ratio": 0.5}, r"&particles mix_ratio = 0.5: must be 0 when n_species = 1"),
     ({"output.piston_every": -1}, r"&output piston_every = -1"),
     ({"physics.wall_law": "slab", "output.energy_every": 10}, r"&output energy_every"),
-    ({"particles.unknown_key": 3}, r"&particles: cannot read group"),
+    ({"particles.unknown_key": 3}, r"unknown key &particles unknown_key \(keys: n, seed,"),
     ({"integration.neighbour": "verlet", "integration.skin": -1.0}, r"&integration skin = -1"),
     ({"integration.neighbour": "verlet", "integration.r_cut": 0.5}, r"&integration r_cut = 0.5"),
     ({"integration.neighbour": "octree"}, r"&integration neighbour = 'octree'"),
@@ -60,21 +60,30 @@ BAD = [
     ({"particles.fill_height": 80.0}, r"&particles fill_height = 80"),
     ({"physics.v_threshold": 0.0}, r"&physics v_threshold = 0"),
     ({"material.gravity_si": 0.0}, r"&material gravity_si = 0"),
-    ({"nonsense.key": 1}, r"unknown namelist group &nonsense"),
+    ({"nonsense.key": 1}, r"unknown group &nonsense"),
 ]
 
 
 @pytest.mark.parametrize("overrides,pattern", BAD, ids=[str(o) for o, _ in BAD])
 def test_bad_value_is_refused_with_key_and_range(overrides, pattern):
-    scene = Scene.read(RUNS / "demo.nml").with_overrides(overrides)
     with pytest.raises(SceneError, match=pattern):
+        validate(Scene.read(RUNS / "demo.nml").with_overrides(overrides))
+
+
+def test_tilt_eq_4_10_refused_where_its_normal_force_is_negative():
+    """Eq. 4.10 (no - phi) on a 3 mm magnet in a 3.1 mm gap: phi + theta > 90 deg, so
+    eq. 4.11's cos(phi + theta) < 0; the scene is refused, naming the key. The 6 mm
+    standard bed (gap < D) is accepted."""
+    scene = Scene.read(RUNS / "bidisperse" / "a060.nml").with_overrides({"physics.tilt": "eq_4_10"})
+    with pytest.raises(SceneError, match=r"&physics tilt = 'eq_4_10': needs gap < smallest diameter"):
         validate(scene)
+    assert validate(Scene.read(RUNS / "demo.nml").with_overrides({"physics.tilt": "eq_4_10"}))
 
 
 def test_type_error_in_namelist_text(tmp_path):
     path = tmp_path / "typo.nml"
     path.write_text((RUNS / "demo.nml").read_text().replace("n = 368", "n = 3x68"))
-    with pytest.raises(SceneError, match=r"&particles: cannot read group"):
+    with pytest.raises(SceneError, match=r"line \d+: &particles n = 3x68: must be an integer"):
         validate(path)
     proc = subprocess.run([str(engine_executable()), str(path), "--out", str(tmp_path / "o")],
                           capture_output=True, text=True)

@@ -1,39 +1,56 @@
 !> Checkpoint container, the same for every method:
 !>
-!>   magic 'PYORCKPT' | format version (int32) | engine version (16 chars) | kind (32 chars)
-!>   | scene hash (int64, CRC-64 of the run's resolved scene.nml) | wall time [s] (real64)
-!>   | step/units done (int64) | number of output files (int32) | their names (32 chars each)
-!>   | their sizes [bytes] (int64 each) | method payload ... | CRC-64 of all preceding bytes
+!>   magic 'PYORCKPT' (8 bytes) | format version (int32) | header length (int32)
+!>   | engine version (16 chars) | kind (32 chars) | scene hash (int64)
+!>   | payload length [bytes] (int64) | payload CRC-64 (int64) | payload ...
 !>
-!> Written to path.tmp, checksummed, then renamed into place, so the previous
-!> checkpoint survives any failure. Reading verifies the checksum, magic,
-!> version, engine version, kind and scene hash before the method reads a
-!> byte of payload, and that the payload was consumed exactly.
+!> ckpt_begin opens a temporary file with a placeholder header, the caller
+!> appends its payload with ckpt_put (checked writes), ckpt_commit writes
+!> the real header, fsyncs and renames it into place (so the previous
+!> checkpoint survives any failure) and fsyncs the directory. ckpt_open
+!> verifies every header field and the checksum before the caller reads a
+!> byte of payload; ckpt_close checks that the payload was consumed exactly.
+!> The runner puts its own record first (wall time, units done, output file
+!> names and sizes), then the method's payload (method%save_state).
 module ckpt
   use, intrinsic :: iso_fortran_env, only: int8, int32
   use kinds, only: dp, i8
-  use errors, only: status_t, set_error, exit_io, msg_len
-  use method, only: method_t, fname_len, max_out_files
-  use files, only: rename_into_place, remove_file
+  use errors, only: status_t, set_error, exit_io, exit_ok
+  use files, only: rename_into_place, file_exists, remove_file, cfile_t, cf_open, cf_write, &
+       cf_seek, cf_close, sync_dir
   implicit none
   private
 
-  public :: ckpt_write, ckpt_read, file_crc64, crc64, engine_version
+  public :: ckpt_writer_t, ckpt_begin, ckpt_put, ckpt_commit, ckpt_open, ckpt_close, &
+       file_crc64, crc64, ckpt_kind_len, engine_version
+
+  character(len=*), parameter :: engine_version = '0.2.0'  !< bound into run.json and checkpoints
+
+  !> A checkpoint being written: its temporary file and the running checksum.
+  type :: ckpt_writer_t
+    type(cfile_t) :: f
+    character(len=:), allocatable :: path   !< final name (the file is path.tmp until commit)
+    integer(i8) :: crc = 0
+    integer(i8) :: nbytes = 0
+    type(status_t) :: st
+  end type ckpt_writer_t
 
   character(len=8), parameter :: magic = 'PYORCKPT'
   integer(int32), parameter :: format_version = 5
-  character(len=16), parameter :: engine_version = '0.2.0'
-  integer, parameter :: chunk = 1048576       !< bytes per read when checksumming
+  integer, parameter :: ckpt_kind_len = 32
+  integer(int32), parameter :: header_len = 8 + 4 + 4 + 16 + ckpt_kind_len + 8 + 8 + 8
+  integer, parameter :: chunk = 1048576   !< bytes per read when checksumming
 
   integer(i8), save :: crc_table(0:255)
   logical, save :: crc_ready = .false.
 
 contains
 
+  ! ---- CRC-64 (ECMA-182, reflected, as in xz) -------------------------------
+
   subroutine crc_init()
     integer(i8) :: poly, c
     integer :: i, k
-    ! ECMA-182 polynomial, reflected (as in xz): 0xC96C5795D7870F42
     poly = ior(shiftl(int(z'C96C5795', i8), 32), int(z'D7870F42', i8))
     do i = 0, 255
       c = int(i, i8)
@@ -63,7 +80,8 @@ contains
     crc = not(c)
   end subroutine crc64
 
-  !> CRC-64 of bytes first .. first+nbytes-1 of an open stream unit.
+  !> CRC-64 of the bytes of unit u (stream, opened for reading) from byte
+  !> position first for nbytes bytes.
   subroutine unit_crc64(u, first, nbytes, crc, ios)
     integer, intent(in) :: u
     integer(i8), intent(in) :: first, nbytes
@@ -84,14 +102,14 @@ contains
     end do
   end subroutine unit_crc64
 
-  !> CRC-64 of a whole file (the resolved scene a checkpoint is bound to).
+  !> CRC-64 of a whole file (e.g. the resolved scene a checkpoint is bound to).
   subroutine file_crc64(path, crc, st)
     character(len=*), intent(in) :: path
     integer(i8), intent(out) :: crc
     type(status_t), intent(inout) :: st
     integer :: u, ios
     integer(i8) :: n
-    character(len=msg_len) :: iom
+    character(len=256) :: iom
     crc = 0
     iom = ''
     open(newunit=u, file=trim(path), access='stream', form='unformatted', status='old', &
@@ -106,138 +124,161 @@ contains
     if (ios /= 0) call set_error(st, exit_io, trim(path)//': cannot read')
   end subroutine file_crc64
 
-  !> Write a checkpoint of method m at `path` (via path.tmp and rename).
-  subroutine ckpt_write(path, kind, scene_hash, wall, done, names, sizes, m, st)
-    character(len=*), intent(in) :: path, kind
-    integer(i8), intent(in) :: scene_hash, done
-    real(dp), intent(in) :: wall
-    character(len=fname_len), intent(in) :: names(:)
-    integer(i8), intent(in) :: sizes(:)
-    class(method_t), intent(in) :: m
-    type(status_t), intent(inout) :: st
-    character(len=:), allocatable :: tmp
-    character(len=32) :: kind32
-    integer :: u, ios
-    integer(i8) :: n, crc
-    character(len=msg_len) :: iom
-    tmp = trim(path)//'.tmp'
-    kind32 = kind
-    iom = ''
-    open(newunit=u, file=tmp, access='stream', form='unformatted', status='replace', &
-         action='readwrite', iostat=ios, iomsg=iom)
-    if (ios /= 0) then
-      call set_error(st, exit_io, tmp//': cannot write checkpoint: '//trim(iom))
-      return
-    end if
-    write(u, iostat=ios, iomsg=iom) magic, format_version, engine_version, kind32, scene_hash, &
-         wall, done, int(size(names), int32), names, sizes
-    if (ios == 0) then
-      call m%save_state(u, st)
-      if (st%code /= 0) ios = -1
-    end if
-    if (ios == 0) flush(u, iostat=ios, iomsg=iom)
-    if (ios == 0) then
-      inquire(unit=u, size=n)
-      call unit_crc64(u, 1_i8, n, crc, ios)
-      if (ios == 0) write(u, pos=n + 1, iostat=ios, iomsg=iom) crc
-    end if
-    if (ios == 0) flush(u, iostat=ios, iomsg=iom)
-    if (ios == 0) then
-      close(u, iostat=ios, iomsg=iom)
-    else
-      close(u)
-    end if
-    if (ios /= 0 .or. st%code /= 0) then
-      call set_error(st, exit_io, tmp//': checkpoint write failed: '//trim(iom)// &
-           ' (the previous checkpoint is kept)')
-      call remove_file(tmp, st)
-      return
-    end if
-    call rename_into_place(tmp, trim(path), st)
-  end subroutine ckpt_write
+  ! ---- generic container -------------------------------------------------------
 
-  !> Verify and read a checkpoint into method m (already loaded from the run's scene).
-  !> names/sizes: the output files and their sizes at the checkpoint.
-  subroutine ckpt_read(path, kind, scene_hash, wall, done, names, sizes, nfiles, m, st)
+  !> Open path.tmp for a new checkpoint; the caller then appends its
+  !> payload with ckpt_put and calls ckpt_commit.
+  subroutine ckpt_begin(w, path)
+    type(ckpt_writer_t), intent(out) :: w
+    character(len=*), intent(in) :: path
+    integer(int8) :: zeros(header_len)
+    w%path = trim(path)
+    call cf_open(w%f, w%path//'.tmp', 'w', w%st)
+    zeros = 0
+    call cf_write(w%f, zeros, w%st)
+  end subroutine ckpt_begin
+
+  !> Append payload bytes (use transfer(x, [0_int8]) for any variable).
+  subroutine ckpt_put(w, b)
+    type(ckpt_writer_t), intent(inout) :: w
+    integer(int8), intent(in) :: b(:)
+    if (w%st%code /= exit_ok) return
+    call cf_write(w%f, b, w%st)
+    call crc64(w%crc, b)
+    w%nbytes = w%nbytes + size(b)
+  end subroutine ckpt_put
+
+  !> Write the header, flush, fsync, close, rename into place. On any
+  !> failure the temporary file is removed, the previous checkpoint is kept
+  !> and the OS error is returned in st.
+  subroutine ckpt_commit(w, kind, scene_hash, st)
+    type(ckpt_writer_t), intent(inout) :: w
+    character(len=*), intent(in) :: kind
+    integer(i8), intent(in) :: scene_hash
+    type(status_t), intent(inout) :: st
+    character(len=16) :: ver
+    character(len=ckpt_kind_len) :: kd
+    type(status_t) :: junk
+    ver = engine_version
+    kd = kind
+    call cf_seek(w%f, 0_i8, w%st)
+    if (w%st%code == exit_ok) call cf_write(w%f, [transfer(magic, [0_int8]), &
+         transfer(format_version, [0_int8]), transfer(header_len, [0_int8]), &
+         transfer(ver, [0_int8]), transfer(kd, [0_int8]), transfer(scene_hash, [0_int8]), &
+         transfer(w%nbytes, [0_int8]), transfer(w%crc, [0_int8])], w%st)
+    call cf_close(w%f, w%st, sync=.true.)
+    if (w%st%code == exit_ok) call rename_into_place(w%path//'.tmp', w%path, w%st)
+    if (w%st%code == exit_ok) call sync_dir(w%path)
+    if (w%st%code /= exit_ok) then
+      call remove_file(w%path//'.tmp', junk)
+      call set_error(st, w%st%code, trim(w%st%msg)//' (the previous checkpoint, if any, '// &
+           'is kept)')
+    end if
+  end subroutine ckpt_commit
+
+  !> Open a checkpoint and verify it before any payload is read: magic,
+  !> format version, engine version, kind, scene hash, payload length and
+  !> checksum. On success u is positioned at the first payload byte.
+  subroutine ckpt_open(path, kind, scene_hash, u, st)
     character(len=*), intent(in) :: path, kind
     integer(i8), intent(in) :: scene_hash
-    real(dp), intent(out) :: wall
-    integer(i8), intent(out) :: done
-    character(len=fname_len), intent(out) :: names(max_out_files)
-    integer(i8), intent(out) :: sizes(max_out_files)
-    integer, intent(out) :: nfiles
-    class(method_t), intent(inout) :: m
+    integer, intent(out) :: u
     type(status_t), intent(inout) :: st
+    integer :: ios
+    character(len=256) :: iom
     character(len=8) :: mg
-    integer(int32) :: ver, nf
-    character(len=16) :: ev
-    character(len=32) :: k32
-    integer(i8) :: h, n, crc, stored, pos
-    integer :: u, ios
-    character(len=msg_len) :: iom
-    nfiles = 0
-    names = ''
-    sizes = 0
-    wall = 0
-    done = 0
+    integer(int32) :: ver, hlen
+    character(len=16) :: ever
+    character(len=ckpt_kind_len) :: kd
+    integer(i8) :: hash, nbytes, crc, crc_now, total
+    character(len=40) :: b1, b2
     iom = ''
+    u = -1
+    if (.not. file_exists(path)) then
+      call set_error(st, exit_io, trim(path)//': no checkpoint')
+      return
+    end if
     open(newunit=u, file=trim(path), access='stream', form='unformatted', status='old', &
          action='read', iostat=ios, iomsg=iom)
     if (ios /= 0) then
       call set_error(st, exit_io, trim(path)//': cannot open checkpoint: '//trim(iom))
+      u = -1
       return
     end if
-    inquire(unit=u, size=n)
-    if (n < 8 + 4 + 16 + 32 + 8 + 8 + 8 + 4 + 8) then
-      call fail('too short to be a checkpoint'); return
+    inquire(unit=u, size=total)
+    if (total < header_len) then
+      call refuse('too short to be a checkpoint')
+      return
     end if
-    call unit_crc64(u, 1_i8, n - 8, crc, ios)
-    if (ios == 0) read(u, pos=n - 7, iostat=ios) stored
-    if (ios /= 0 .or. crc /= stored) then
-      call fail('checksum mismatch (corrupted or truncated)'); return
-    end if
-    read(u, pos=1, iostat=ios) mg, ver, ev, k32
+    read(u, pos=1, iostat=ios) mg, ver, hlen, ever, kd, hash, nbytes, crc
     if (ios /= 0 .or. mg /= magic) then
-      call fail('not a checkpoint of this engine'); return
+      call refuse('not a checkpoint (bad magic)')
+    else if (ver /= format_version .or. hlen /= header_len) then
+      write(b1, '(i0)') ver
+      write(b2, '(i0)') format_version
+      call refuse('checkpoint format '//trim(b1)//', this engine reads format '//trim(b2))
+    else if (ever /= engine_version) then
+      call refuse('written by engine version '''//trim(printable(ever))//''', this is '''// &
+           engine_version//'''')
+    else if (kd /= kind) then
+      call refuse('checkpoint of kind '''//trim(printable(kd))//''', the scene is '''// &
+           trim(kind)//'''')
+    else if (hash /= scene_hash) then
+      call refuse('belongs to another scene (its scene hash differs from scene.nml: the '// &
+           'scene was edited, or the checkpoint comes from another run)')
+    else if (nbytes /= total - header_len) then
+      write(b1, '(i0)') total - header_len
+      write(b2, '(i0)') nbytes
+      call refuse('truncated or extended: payload of '//trim(b1)//' bytes, the header '// &
+           'records '//trim(b2))
+    else
+      call unit_crc64(u, int(header_len, i8) + 1, nbytes, crc_now, ios)
+      if (ios /= 0 .or. crc_now /= crc) then
+        call refuse('corrupted (payload checksum mismatch)')
+      else
+        read(u, pos=int(header_len, i8) + 1, iostat=ios)   ! position at the payload
+        if (ios /= 0) call refuse('cannot read the payload')
+      end if
     end if
-    if (ver /= format_version .or. ev /= engine_version) then
-      call fail('written by engine '//trim(ev)//' (this is '//trim(engine_version)// &
-           '): not resumable with this version'); return
-    end if
-    if (k32 /= kind) then
-      call fail("of kind '"//trim(k32)//"', the run is '"//trim(kind)//"'"); return
-    end if
-    read(u, iostat=ios) h, wall, done, nf
-    if (ios /= 0) then
-      call fail('header unreadable'); return
-    end if
-    if (h /= scene_hash) then
-      call fail('belongs to another scene (scene.nml changed since the checkpoint, or the '// &
-           'checkpoint comes from another run)'); return
-    end if
-    if (nf < 0 .or. nf > max_out_files) then
-      call fail('bad file count'); return
-    end if
-    nfiles = nf
-    read(u, iostat=ios) names(1:nfiles), sizes(1:nfiles)
-    if (ios /= 0) then
-      call fail('header unreadable'); return
-    end if
-    call m%restore_state(u, st)
-    if (st%code /= 0) then
-      close(u); return
-    end if
-    inquire(unit=u, pos=pos)
-    if (pos /= n - 7) then
-      call fail('payload size does not match the scene'); return
-    end if
-    close(u)
   contains
-    subroutine fail(why)
+    subroutine refuse(why)
       character(len=*), intent(in) :: why
-      close(u)
-      call set_error(st, exit_io, trim(path)//': checkpoint refused: '//why)
-    end subroutine fail
-  end subroutine ckpt_read
+      call set_error(st, exit_io, trim(path)//': refused: '//why)
+      close(u, iostat=ios)
+      u = -1
+    end subroutine refuse
+  end subroutine ckpt_open
+
+  !> End a payload read: ios of the reads, and the payload must be consumed
+  !> exactly (a checksummed payload of the wrong shape is refused too).
+  subroutine ckpt_close(u, path, ios, st)
+    integer, intent(inout) :: u
+    character(len=*), intent(in) :: path
+    integer, intent(in) :: ios
+    type(status_t), intent(inout) :: st
+    integer(i8) :: pos, total
+    integer :: ios2
+    if (u == -1) return
+    if (ios == 0) then
+      inquire(unit=u, pos=pos, size=total)
+      if (pos /= total + 1) call set_error(st, exit_io, trim(path)//': refused: payload '// &
+           'does not match the scene (unread bytes)')
+    else
+      call set_error(st, exit_io, trim(path)//': refused: payload does not match the scene')
+    end if
+    close(u, iostat=ios2)
+    u = -1
+  end subroutine ckpt_close
+
+  pure function printable(s) result(r)
+    character(len=*), intent(in) :: s
+    character(len=len(s)) :: r
+    integer :: i, c
+    r = s
+    do i = 1, len(s)
+      c = iachar(s(i:i))
+      if (c < 32 .or. c > 126) r(i:i) = '?'
+    end do
+  end function printable
 
 end module ckpt

@@ -5,7 +5,7 @@
 !> everything else: the run directory, scene.nml, run.json, checkpoints and
 !> resume, signals, --stop-at, progress lines and exit codes. The runner
 !> calls, in this order:
-!>   load -> [write_scene, open_outputs] -> { advance, [save_state] }* -> finish -> close_outputs
+!>   load -> [scene_text, open_outputs] -> { advance, [save_state] }* -> finish -> close_outputs
 !> and on resume: load -> restore_state -> (files cut back) -> open_outputs(append) -> ...
 !> `advance` performs one unit of work (a time step, an event, a DSMC step)
 !> and writes the rows that are due; `counters` tells the runner how far the
@@ -13,6 +13,7 @@
 module method
   use kinds, only: dp, i8
   use errors, only: status_t
+  use ckpt, only: ckpt_writer_t
   implicit none
   private
 
@@ -27,7 +28,8 @@ module method
     integer(i8) :: progress_every = 0       !< units between progress lines (0: about 200 per run)
   contains
     procedure(load_i), deferred :: load
-    procedure(write_scene_i), deferred :: write_scene
+    procedure :: read => read_default
+    procedure(scene_text_i), deferred :: scene_text
     procedure(open_i), deferred :: open_outputs
     procedure(advance_i), deferred :: advance
     procedure(advance_i), deferred :: finish
@@ -48,13 +50,14 @@ module method
       character(len=*), intent(in) :: path
       type(status_t), intent(inout) :: st
     end subroutine load_i
-    !> Write the fully resolved scene (every key, its value and unit) to `path`.
-    subroutine write_scene_i(self, path, st)
-      import :: method_t, status_t
+    !> The fully resolved scene (every key, its value and unit), lines ending in
+    !> achar(10); the first line starts with '! resolved scene:' (the runner
+    !> recognises a run directory by it and never removes another scene.nml).
+    function scene_text_i(self) result(text)
+      import :: method_t
       class(method_t), intent(in) :: self
-      character(len=*), intent(in) :: path
-      type(status_t), intent(inout) :: st
-    end subroutine write_scene_i
+      character(len=:), allocatable :: text
+    end function scene_text_i
     !> Open the output files in `dir`: fresh with headers, or appended to after a resume.
     subroutine open_i(self, dir, append, st)
       import :: method_t, status_t
@@ -83,12 +86,12 @@ module method
       character(len=fname_len), intent(out) :: names(max_out_files)
       integer, intent(out) :: n
     end subroutine files_i
-    !> The complete dynamic state, on an open unformatted stream unit.
-    subroutine save_i(self, u, st)
-      import :: method_t, status_t
+    !> The complete dynamic state, appended to a checkpoint with
+    !> ckpt_put(w, transfer(x, [0_int8])) (checked writes; the writer keeps the first failure).
+    subroutine save_i(self, w)
+      import :: method_t, ckpt_writer_t
       class(method_t), intent(in) :: self
-      integer, intent(in) :: u
-      type(status_t), intent(inout) :: st
+      type(ckpt_writer_t), intent(inout) :: w
     end subroutine save_i
     subroutine restore_i(self, u, st)
       import :: method_t, status_t
@@ -109,12 +112,25 @@ module method
       class(method_t), intent(in) :: self
       character(len=:), allocatable :: s
     end function text_i
-    !> The method's own run.json members, each line '  "key": value,' (the runner closes the object).
-    subroutine json_i(self, u)
+    !> The method's own run.json members: lines '  "key": value,' each ending in
+    !> achar(10) (the runner adds the shared members and closes the object).
+    function json_i(self) result(text)
       import :: method_t
       class(method_t), intent(in) :: self
-      integer, intent(in) :: u
-    end subroutine json_i
+      character(len=:), allocatable :: text
+    end function json_i
   end interface
+
+contains
+
+  !> Read the scene file only (file-level and type checks, no range
+  !> validation), for resolving a scene as the engine reads it. A method
+  !> without a separate reading step validates here too (the default).
+  subroutine read_default(self, path, st)
+    class(method_t), intent(inout) :: self
+    character(len=*), intent(in) :: path
+    type(status_t), intent(inout) :: st
+    call self%load(path, st)
+  end subroutine read_default
 
 end module method

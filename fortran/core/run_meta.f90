@@ -2,9 +2,10 @@
 !> method's own (json_fields); replaced atomically (temporary file + rename).
 module run_meta
   use kinds, only: dp, i8
-  use errors, only: status_t, set_error, exit_io, msg_len
+  use, intrinsic :: iso_fortran_env, only: int8
+  use errors, only: status_t, set_error, exit_io, exit_ok
   use method, only: method_t
-  use files, only: rename_into_place
+  use files, only: rename_into_place, remove_file, cfile_t, cf_open, cf_write, cf_close
   use ckpt, only: engine_version
   implicit none
   private
@@ -15,6 +16,9 @@ module run_meta
 
 contains
 
+  !> run.json: the shared members, then the method's (json_fields). Written
+  !> through the checked layer and renamed into place; fsynced for a final
+  !> status (the 'running' updates are only flushed).
   subroutine write_run_json(dir, m, kind, scene_path, status, code, message, done, total, &
        t_now, wall, st)
     character(len=*), intent(in) :: dir, kind, scene_path, status, message
@@ -22,48 +26,55 @@ contains
     integer, intent(in) :: code
     integer(i8), intent(in) :: done, total
     real(dp), intent(in) :: t_now, wall
-    type(status_t), intent(inout) :: st
-    integer :: u, ios
-    character(len=msg_len) :: iom
-    character(len=:), allocatable :: tmp
+    type(status_t), intent(inout) :: st   !< a failure here is recorded unless st already failed
+    type(status_t) :: lst, junk
+    type(cfile_t) :: f
+    character(len=:), allocatable :: tmp, text
+    character(len=1), parameter :: nl = achar(10)
     real(dp) :: per_step
     tmp = trim(dir)//'/.run.json.tmp'
     per_step = 0
     if (done > 0) per_step = wall/real(done, dp)
-    iom = ''
-    open(newunit=u, file=tmp, status='replace', action='write', iostat=ios, iomsg=iom)
-    if (ios /= 0) then
-      call set_error(st, exit_io, tmp//': cannot write run metadata: '//trim(iom))
-      return
-    end if
-    write(u, '(a)') '{'
-    write(u, '(a)') '  "program": "magbed",'
-    write(u, '(a)') '  "version": "'//trim(engine_version)//'",'
-    write(u, '(a)') '  "compiler": "'//json_escape(compiler_id())//'",'
-    write(u, '(a)') '  "kind": "'//json_escape(trim(kind))//'",'
-    write(u, '(a)') '  "scene": "'//json_escape(trim(scene_path))//'",'
-    write(u, '(a)') '  "status": "'//json_escape(trim(status))//'",'
-    write(u, '(a,i0,a)') '  "exit_code": ', code, ','
-    write(u, '(a)') '  "message": "'//json_escape(trim(message))//'",'
-    write(u, '(a,i0,a)') '  "steps_done": ', done, ','
-    write(u, '(a,i0,a)') '  "steps_total": ', total, ','
-    write(u, '(a,'//rfmt//',a)') '  "t_reached": ', t_now, ','
-    write(u, '(a,'//rfmt//',a)') '  "wall_time_s": ', wall, ','
-    write(u, '(a,'//rfmt//',a)') '  "wall_time_per_step_s": ', per_step, ','
-    call m%json_fields(u)
-    write(u, '(a,i0)', iostat=ios, iomsg=iom) '  "threads": ', n_threads()
-    if (ios == 0) write(u, '(a)', iostat=ios, iomsg=iom) '}'
-    if (ios == 0) flush(u, iostat=ios, iomsg=iom)
-    if (ios == 0) then
-      close(u, iostat=ios, iomsg=iom)
+    text = '{'//nl// &
+         '  "program": "magbed",'//nl// &
+         '  "version": "'//trim(engine_version)//'",'//nl// &
+         '  "compiler": "'//json_escape(compiler_id())//'",'//nl// &
+         '  "kind": "'//json_escape(trim(kind))//'",'//nl// &
+         '  "scene": "'//json_escape(trim(scene_path))//'",'//nl// &
+         '  "status": "'//json_escape(trim(status))//'",'//nl// &
+         '  "exit_code": '//istr(int(code, i8))//','//nl// &
+         '  "message": "'//json_escape(trim(message))//'",'//nl// &
+         '  "steps_done": '//istr(done)//','//nl// &
+         '  "steps_total": '//istr(total)//','//nl// &
+         '  "t_reached": '//rstr(t_now)//','//nl// &
+         '  "wall_time_s": '//rstr(wall)//','//nl// &
+         '  "wall_time_per_step_s": '//rstr(per_step)//','//nl// &
+         m%json_fields()// &
+         '  "threads": '//istr(int(n_threads(), i8))//nl//'}'//nl
+    call cf_open(f, tmp, 'w', lst)
+    call cf_write(f, transfer(text, [0_int8]), lst)
+    call cf_close(f, lst, sync=trim(status) /= 'running')
+    if (lst%code == exit_ok) then
+      call rename_into_place(tmp, trim(dir)//'/run.json', lst)
     else
-      close(u)
+      call remove_file(tmp, junk)
     end if
-    if (ios /= 0) then
-      call set_error(st, exit_io, tmp//': write failed: '//trim(iom))
-      return
-    end if
-    call rename_into_place(tmp, trim(dir)//'/run.json', st)
+    if (lst%code /= exit_ok) call set_error(st, lst%code, trim(lst%msg))
+  contains
+    function istr(v) result(t)
+      integer(i8), intent(in) :: v
+      character(len=:), allocatable :: t
+      character(len=24) :: buf
+      write(buf, '(i0)') v
+      t = trim(buf)
+    end function istr
+    function rstr(v) result(t)
+      real(dp), intent(in) :: v
+      character(len=:), allocatable :: t
+      character(len=32) :: buf
+      write(buf, '('//rfmt//')') v
+      t = trim(adjustl(buf))
+    end function rstr
   end subroutine write_run_json
 
   function json_escape(s) result(r)

@@ -12,22 +12,27 @@ module runner
   use errors, only: status_t, set_error, exit_ok, exit_interrupted, exit_io
   use method, only: method_t, fname_len, max_out_files
   use methods, only: method_for_scene
-  use scene_input, only: kind_len, read_kind
-  use files, only: file_exists, remove_file, make_dir, truncate_file
-  use ckpt, only: ckpt_write, ckpt_read, file_crc64
+  use, intrinsic :: iso_fortran_env, only: int8, int32
+  use scene_input, only: kind_len, read_text
+  use files, only: file_exists, remove_file, make_dir, truncate_file, cfile_t, cf_open, &
+       cf_write, cf_close
+  use ckpt, only: ckpt_writer_t, ckpt_begin, ckpt_put, ckpt_commit, ckpt_open, ckpt_close, &
+       file_crc64
   use run_meta, only: write_run_json
   use signals, only: stop_requested, stop_signal
   implicit none
   private
 
-  public :: sim_execute, sim_resume, sim_check
+  public :: sim_execute, sim_resume, sim_check, sim_resolve
 
   character(len=*), parameter :: ckpt_name = 'checkpoint.bin'
   character(len=*), parameter :: ckpt_failed = 'checkpoint_failed.bin'
   !> Files of every run besides the method's outputs (--overwrite removes them too).
-  character(len=*), parameter :: run_files(7) = [character(len=25) :: 'scene.nml', 'run.json', &
+  character(len=*), parameter :: run_files(8) = [character(len=25) :: 'scene.nml', 'run.json', &
        '.run.json.tmp', 'checkpoint.bin', 'checkpoint.bin.tmp', 'checkpoint_failed.bin', &
-       'checkpoint_failed.bin.tmp']
+       'checkpoint_failed.bin.tmp', '.outputs']
+  !> The output files of the run in a directory, one name a line (what --overwrite removes).
+  character(len=*), parameter :: outputs_list = '.outputs'
 
   !> What the runner keeps of one run.
   type :: run_t
@@ -51,13 +56,39 @@ contains
     class(method_t), allocatable :: m
     integer(i8) :: done
     real(dp) :: t
+    character(len=kind_len) :: kind
     total = 0
-    call method_for_scene(path, m, st)
+    call method_for_scene(path, m, kind, st)
     if (st%code /= 0) return
     call m%load(path, st)
     if (st%code /= 0) return
     call m%counters(done, total, t)
   end subroutine sim_check
+
+  !> The engine's one reading of a scene file, for pyorch: read `path` (its
+  !> kind's groups, keys and types; no range validation) and write it back to
+  !> `outpath` in the resolved-scene format (every key, as understood).
+  subroutine sim_resolve(path, outpath, st)
+    character(len=*), intent(in) :: path, outpath
+    type(status_t), intent(inout) :: st
+    class(method_t), allocatable :: m
+    character(len=kind_len) :: kind
+    call method_for_scene(path, m, kind, st)
+    if (st%code /= 0) return
+    call m%read(path, st)
+    if (st%code /= 0) return
+    call write_text(outpath, m%scene_text(), st)
+  end subroutine sim_resolve
+
+  !> A whole text file through the checked layer (fsync before close).
+  subroutine write_text(path, text, st)
+    character(len=*), intent(in) :: path, text
+    type(status_t), intent(inout) :: st
+    type(cfile_t) :: f
+    call cf_open(f, path, 'w', st)
+    call cf_write(f, transfer(text, [0_int8]), st)
+    call cf_close(f, st, sync=.true.)
+  end subroutine write_text
 
   !> The whole run: load (nothing written on bad input), open the run
   !> directory, run until the end (or unit stop_at >= 0), finish.
@@ -80,7 +111,9 @@ contains
     if (st%code /= 0) return
     call make_dir(r%dir, st)
     if (st%code /= 0) return
-    call r%m%write_scene(r%dir//'/scene.nml', st)
+    call write_text(r%dir//'/'//outputs_list, outputs_text(r), st)
+    if (st%code /= 0) return
+    call write_text(r%dir//'/scene.nml', r%m%scene_text(), st)
     if (st%code /= 0) return
     call file_crc64(r%dir//'/scene.nml', r%hash, st)
     if (st%code /= 0) return
@@ -105,7 +138,7 @@ contains
     type(status_t), intent(inout) :: st
     type(run_t) :: r
     character(len=fname_len) :: names(max_out_files), now(max_out_files)
-    integer(i8) :: sizes(max_out_files), done
+    integer(i8) :: sizes(max_out_files)
     integer :: k, nfiles, nnow
     if (len_trim(dir) == 0) then
       call set_error(st, exit_io, 'the run directory name is empty')
@@ -121,13 +154,24 @@ contains
     r%progress = progress
     call file_crc64(r%dir//'/scene.nml', r%hash, st)
     if (st%code /= 0) return
-    call ckpt_read(r%dir//'/'//ckpt_name, r%kind, r%hash, r%wall_before, done, names, sizes, &
-         nfiles, r%m, st)
+    if (.not. file_exists(r%dir//'/'//ckpt_name)) then
+      ! killed before the step-0 checkpoint was on disk: start again from step 0
+      call start(r, .false., st)
+      if (st%code /= 0) return
+      call save(r, ckpt_name, st)
+      if (st%code /= 0) then
+        call finish(r, 'failed: '//trim(st%msg), st)
+        return
+      end if
+      call run_loop(r, stop_at, st)
+      return
+    end if
+    call restore(r, names, sizes, nfiles, st)
     if (st%code /= 0) return
     call r%m%output_files(now, nnow)
     if (nnow /= nfiles .or. any(now(1:nnow) /= names(1:nfiles))) then
-      call set_error(st, exit_io, r%dir//'/'//ckpt_name//': lists other output files than '// &
-           'the scene writes')
+      call set_error(st, exit_io, r%dir//'/'//ckpt_name//': refused: lists other output '// &
+           'files than the scene writes')
       return
     end if
     do k = 1, nfiles
@@ -145,9 +189,7 @@ contains
     type(status_t), intent(inout) :: st
     integer(i8) :: done, total
     real(dp) :: t
-    call read_kind(path, r%kind, st)
-    if (st%code /= 0) return
-    call method_for_scene(path, r%m, st)
+    call method_for_scene(path, r%m, r%kind, st)
     if (st%code /= 0) return
     r%scene_path = trim(path)
     call r%m%load(path, st)
@@ -164,14 +206,37 @@ contains
     logical, intent(in) :: overwrite
     type(status_t), intent(inout) :: st
     character(len=fname_len) :: names(max_out_files)
-    integer :: k, n
-    call r%m%output_files(names, n)
-    do k = 1, size(run_files) + n
-      if (k <= size(run_files)) then
-        call one(trim(run_files(k)))
-      else
-        call one(trim(names(k - size(run_files))))
+    character(len=:), allocatable :: text
+    integer :: k, n, a, b
+    if (overwrite .and. file_exists(r%dir//'/scene.nml')) then
+      if (.not. is_resolved_scene(r%dir//'/scene.nml')) then
+        call set_error(st, exit_io, r%dir//'/scene.nml: not a run''s resolved scene; '// &
+             'refusing to remove it (choose another directory)')
+        return
       end if
+    end if
+    call r%m%output_files(names, n)
+    do k = 1, n
+      call one(trim(names(k)))
+      if (st%code /= 0) return
+    end do
+    ! the earlier run's outputs, as it listed them (another kind, other cadences)
+    if (file_exists(r%dir//'/'//outputs_list)) then
+      call read_text(r%dir//'/'//outputs_list, text, st)
+      if (st%code /= 0) return
+      a = 1
+      do while (a <= len(text))
+        b = index(text(a:), achar(10))
+        if (b == 0) b = len(text) - a + 2
+        if (b > 1) then
+          if (index(text(a:a + b - 2), '/') == 0) call one(text(a:a + b - 2))
+        end if
+        if (st%code /= 0) return
+        a = a + b
+      end do
+    end if
+    do k = 1, size(run_files)
+      call one(trim(run_files(k)))
       if (st%code /= 0) return
     end do
   contains
@@ -186,6 +251,32 @@ contains
       call remove_file(r%dir//'/'//name, st)
     end subroutine one
   end subroutine clear_dir
+
+  !> The names of the run's output files, one a line.
+  function outputs_text(r) result(text)
+    type(run_t), intent(in) :: r
+    character(len=:), allocatable :: text
+    character(len=fname_len) :: names(max_out_files)
+    integer :: k, n
+    call r%m%output_files(names, n)
+    text = ''
+    do k = 1, n
+      text = text//trim(names(k))//achar(10)
+    end do
+  end function outputs_text
+
+  !> A scene.nml written by the engine (its first line says so).
+  logical function is_resolved_scene(path)
+    character(len=*), intent(in) :: path
+    integer :: u, ios
+    character(len=80) :: first
+    is_resolved_scene = .false.
+    open(newunit=u, file=path, status='old', action='read', iostat=ios)
+    if (ios /= 0) return
+    read(u, '(a)', iostat=ios) first
+    close(u)
+    is_resolved_scene = ios == 0 .and. index(first, '! resolved scene:') == 1
+  end function is_resolved_scene
 
   subroutine start(r, append, st)
     type(run_t), intent(inout) :: r
@@ -216,7 +307,9 @@ contains
   end subroutine run_json
 
   !> Checkpoint `name` after flushing the outputs; if the flush fails no
-  !> checkpoint is written (the previous one stays valid).
+  !> checkpoint is written (the previous one stays valid). The runner's
+  !> record (wall time, units done, output names and sizes) comes first,
+  !> then the method's payload.
   subroutine save(r, name, st)
     type(run_t), intent(inout) :: r
     character(len=*), intent(in) :: name
@@ -225,6 +318,8 @@ contains
     integer(i8) :: sizes(max_out_files), done, total
     integer :: k, n
     real(dp) :: t
+    type(ckpt_writer_t) :: w
+    integer(int8), parameter :: b(0) = [integer(int8) ::]
     call r%m%close_outputs(.true., st)
     if (st%code /= 0) return
     call r%m%output_files(names, n)
@@ -232,9 +327,43 @@ contains
       inquire(file=r%dir//'/'//trim(names(k)), size=sizes(k))
     end do
     call r%m%counters(done, total, t)
-    call ckpt_write(r%dir//'/'//name, r%kind, r%hash, wall_time(r), done, names(1:n), &
-         sizes(1:n), r%m, st)
+    call ckpt_begin(w, r%dir//'/'//name)
+    call ckpt_put(w, [transfer(wall_time(r), b), transfer(done, b), transfer(int(n, int32), b)])
+    if (n > 0) then
+      call ckpt_put(w, transfer(names(1:n), b))
+      call ckpt_put(w, transfer(sizes(1:n), b))
+    end if
+    call r%m%save_state(w)
+    call ckpt_commit(w, r%kind, r%hash, st)
   end subroutine save
+
+  !> Verify the checkpoint (container), read the runner's record and the method's payload.
+  subroutine restore(r, names, sizes, nfiles, st)
+    type(run_t), intent(inout) :: r
+    character(len=fname_len), intent(out) :: names(max_out_files)
+    integer(i8), intent(out) :: sizes(max_out_files)
+    integer, intent(out) :: nfiles
+    type(status_t), intent(inout) :: st
+    integer :: u, ios
+    integer(int32) :: nf
+    integer(i8) :: done
+    character(len=:), allocatable :: path
+    path = r%dir//'/'//ckpt_name
+    names = ''
+    sizes = 0
+    nfiles = 0
+    call ckpt_open(path, r%kind, r%hash, u, st)
+    if (u == -1) return
+    read(u, iostat=ios) r%wall_before, done, nf
+    if (ios == 0 .and. (nf < 0 .or. nf > max_out_files)) ios = 1
+    if (ios == 0 .and. nf > 0) read(u, iostat=ios) names(1:nf), sizes(1:nf)
+    if (ios == 0) then
+      nfiles = nf
+      call r%m%restore_state(u, st)
+      if (st%code /= 0) ios = 1
+    end if
+    call ckpt_close(u, path, ios, st)
+  end subroutine restore
 
   !> Advance to the end; checkpoints; clean stops on a guard, a signal or stop_at.
   subroutine run_loop(r, stop_at, st)

@@ -9,41 +9,172 @@ module scene_input
   implicit none
   private
 
-  public :: kind_len, read_kind, check_real, check_int, check_choice, &
+  public :: kind_len, read_kind, read_text, max_scene_bytes, check_real, check_int, check_choice, &
        put_real, put_int, put_str, put_logical, quoted, real_str, int_str
 
   integer, parameter :: kind_len = 32
+  integer(i8), parameter :: max_scene_bytes = 1048576   !< a scene file is text of at most 1 MiB
 
 contains
 
-  !> The scene kind (&scene kind = '...'); a file without it is refused.
-  subroutine read_kind(path, kind, st)
+  !> The whole file as one string (at most max_scene_bytes); bytes that are
+  !> not text (controls other than tab, CR, LF) are refused.
+  subroutine read_text(path, text, st)
     character(len=*), intent(in) :: path
-    character(len=kind_len), intent(out) :: kind
+    character(len=:), allocatable, intent(out) :: text
     type(status_t), intent(inout) :: st
-    character(len=128) :: title
-    integer :: u, ios
+    integer :: u, ios, i, line
+    integer(i8) :: n
     character(len=msg_len) :: iom
-    namelist /scene/ kind, title
-    kind = ''
-    title = ''
-    open(newunit=u, file=path, status='old', action='read', iostat=ios, iomsg=iom)
+    character(len=8) :: hx
+    text = ''
+    iom = ''
+    open(newunit=u, file=path, access='stream', form='unformatted', status='old', &
+         action='read', iostat=ios, iomsg=iom)
     if (ios /= 0) then
       call set_error(st, exit_io, trim(path)//': cannot open scene file: '//trim(iom))
       return
     end if
-    read(u, nml=scene, iostat=ios, iomsg=iom)
-    close(u)
-    if (ios < 0) then
-      call set_error(st, exit_bad_input, trim(path)//': no &scene group: a scene must name '// &
-           "its kind (&scene kind = 'magnet_bed' | 'oscillator' | 'rods' /)")
-    else if (ios > 0) then
-      call set_error(st, exit_bad_input, trim(path)//': &scene: cannot read group: '//trim(iom))
-    else if (len_trim(kind) == 0) then
-      call set_error(st, exit_bad_input, trim(path)//": &scene kind: missing (allowed: "// &
-           "'magnet_bed' | 'oscillator' | 'rods')")
+    inquire(unit=u, size=n)
+    if (n < 0 .or. n > max_scene_bytes) then
+      close(u)
+      call set_error(st, exit_bad_input, trim(path)//': not a scene file (larger than '// &
+           int_str(max_scene_bytes)//' bytes)')
+      return
     end if
+    deallocate(text)
+    allocate(character(len=n) :: text)
+    ios = 0
+    if (n > 0) read(u, iostat=ios, iomsg=iom) text
+    close(u)
+    if (ios /= 0) then
+      call set_error(st, exit_io, trim(path)//': cannot read scene file: '//trim(iom))
+      return
+    end if
+    line = 1
+    do i = 1, len(text)
+      if (text(i:i) == achar(10)) line = line + 1
+      if ((iachar(text(i:i)) < 32 .and. index(achar(9)//achar(10)//achar(13), text(i:i)) == 0) &
+           .or. iachar(text(i:i)) == 127) then
+        write(hx, '(z2.2)') iachar(text(i:i))
+        call set_error(st, exit_bad_input, trim(path)//': line '//int_str(int(line, i8))//': byte 0x'// &
+             trim(hx)//' is not text (a binary file?): not a scene file')
+        return
+      end if
+    end do
+  end subroutine read_text
+
+  !> The scene kind (&scene kind = '...'), from a kind-agnostic scan of the
+  !> file: text only (read_text), at least one group, strings closed on their
+  !> line, a &scene group naming the kind. Everything else (the kind's groups,
+  !> keys, types) is the kind's own reader's.
+  subroutine read_kind(path, allowed, kind, st)
+    character(len=*), intent(in) :: path
+    character(len=*), intent(in) :: allowed   !< e.g. "'magnet_bed' | 'oscillator'" (messages)
+    character(len=kind_len), intent(out) :: kind
+    type(status_t), intent(inout) :: st
+    character(len=:), allocatable :: text, group, word
+    integer :: i, line, p0, ngroups
+    logical :: in_scene, after_kind
+    character(len=1) :: c, q
+    kind = ''
+    call read_text(path, text, st)
+    if (st%code /= 0) return
+    i = 1
+    line = 1
+    ngroups = 0
+    in_scene = .false.
+    after_kind = .false.
+    group = ''
+    do while (i <= len(text))
+      c = text(i:i)
+      if (c == achar(10)) then
+        line = line + 1
+      else if (c == '!') then                 ! comment to the end of the line
+        do while (i < len(text))
+          if (text(i + 1:i + 1) == achar(10)) exit
+          i = i + 1
+        end do
+      else if (c == "'" .or. c == '"') then    ! a string, closed on its line
+        q = c
+        p0 = i
+        i = i + 1
+        do
+          if (i > len(text)) then
+            call fail('string not closed: '//text(p0:min(p0 + 30, len(text))))
+            return
+          end if
+          if (text(i:i) == achar(10)) then
+            call fail('string not closed on its line: '//text(p0:i - 1))
+            return
+          end if
+          if (text(i:i) == q) then
+            if (i < len(text)) then
+              if (text(i + 1:i + 1) == q) then
+                i = i + 2
+                cycle
+              end if
+            end if
+            exit
+          end if
+          i = i + 1
+        end do
+        if (in_scene .and. after_kind .and. len_trim(kind) == 0) kind = text(p0 + 1:i - 1)
+        after_kind = .false.
+      else if (c == '&' .or. c == '$') then
+        word = ident_at(i + 1)
+        group = lower_case(word)
+        if (group /= 'end' .and. len(group) > 0) ngroups = ngroups + 1
+        in_scene = group == 'scene'
+        i = i + len(word)
+      else if (c == '/') then
+        in_scene = .false.
+      else if (in_scene .and. is_letter(c)) then
+        word = ident_at(i)
+        after_kind = lower_case(word) == 'kind'
+        i = i + len(word) - 1
+      end if
+      i = i + 1
+    end do
+    if (ngroups == 0) then
+      call set_error(st, exit_bad_input, trim(path)//': no namelist group: a scene file '// &
+           'names its kind (&scene kind = '//allowed//' /) and holds its groups')
+    else if (len_trim(kind) == 0) then
+      call set_error(st, exit_bad_input, trim(path)//': the scene does not name its kind: '// &
+           'add &scene kind = ... / (allowed: '//allowed//')')
+    end if
+  contains
+    subroutine fail(msg)
+      character(len=*), intent(in) :: msg
+      call set_error(st, exit_bad_input, trim(path)//': line '//int_str(int(line, i8))//': '//msg)
+    end subroutine fail
+    function ident_at(j) result(w)
+      integer, intent(in) :: j
+      character(len=:), allocatable :: w
+      integer :: k
+      k = j
+      do while (k <= len(text))
+        if (.not. (is_letter(text(k:k)) .or. index('0123456789_', text(k:k)) > 0)) exit
+        k = k + 1
+      end do
+      w = text(j:k - 1)
+    end function ident_at
   end subroutine read_kind
+
+  pure logical function is_letter(c)
+    character(len=1), intent(in) :: c
+    is_letter = (c >= 'a' .and. c <= 'z') .or. (c >= 'A' .and. c <= 'Z')
+  end function is_letter
+
+  pure function lower_case(s) result(r)
+    character(len=*), intent(in) :: s
+    character(len=len(s)) :: r
+    integer :: k
+    r = s
+    do k = 1, len(s)
+      if (s(k:k) >= 'A' .and. s(k:k) <= 'Z') r(k:k) = achar(iachar(s(k:k)) + 32)
+    end do
+  end function lower_case
 
   !> A finite real in [lo, hi] (open at lo unless lo_closed).
   subroutine check_real(path, group, key, v, lo, hi, lo_closed, st)
@@ -125,36 +256,43 @@ contains
     s = trim(buf)
   end function int_str
 
-  !> Lines of a resolved scene: '  key = value  ! note'.
-  subroutine put_real(u, key, v, note)
-    integer, intent(in) :: u
+  !> Lines of a resolved scene appended to `text`: '  key = value  ! note'.
+  subroutine put_real(text, key, v, note)
+    character(len=:), allocatable, intent(inout) :: text
     character(len=*), intent(in) :: key, note
     real(dp), intent(in) :: v
-    write(u, '(a)') trim('  '//key//' = '//real_str(v)//merge('  ! '//note, repeat(' ', len(note)+4), &
-         len(note) > 0))
+    call put_line(text, key, real_str(v), note)
   end subroutine put_real
 
-  subroutine put_int(u, key, v, note)
-    integer, intent(in) :: u
+  subroutine put_int(text, key, v, note)
+    character(len=:), allocatable, intent(inout) :: text
     character(len=*), intent(in) :: key, note
     integer(i8), intent(in) :: v
-    write(u, '(a)') trim('  '//key//' = '//int_str(v)//merge('  ! '//note, repeat(' ', len(note)+4), &
-         len(note) > 0))
+    call put_line(text, key, int_str(v), note)
   end subroutine put_int
 
-  subroutine put_str(u, key, v, note)
-    integer, intent(in) :: u
+  subroutine put_str(text, key, v, note)
+    character(len=:), allocatable, intent(inout) :: text
     character(len=*), intent(in) :: key, v, note
-    write(u, '(a)') trim('  '//key//' = '//quoted(trim(v))//merge('  ! '//note, &
-         repeat(' ', len(note)+4), len(note) > 0))
+    call put_line(text, key, quoted(trim(v)), note)
   end subroutine put_str
 
-  subroutine put_logical(u, key, v, note)
-    integer, intent(in) :: u
+  subroutine put_logical(text, key, v, note)
+    character(len=:), allocatable, intent(inout) :: text
     character(len=*), intent(in) :: key, note
     logical, intent(in) :: v
-    write(u, '(a)') trim('  '//key//' = '//merge('.true. ', '.false.', v)// &
-         merge('  ! '//note, repeat(' ', len(note)+4), len(note) > 0))
+    call put_line(text, key, trim(merge('.true. ', '.false.', v)), note)
   end subroutine put_logical
+
+  subroutine put_line(text, key, value, note)
+    character(len=:), allocatable, intent(inout) :: text
+    character(len=*), intent(in) :: key, value, note
+    if (.not. allocated(text)) text = ''
+    if (len(note) > 0) then
+      text = text//'  '//key//' = '//value//'  ! '//note//achar(10)
+    else
+      text = text//'  '//key//' = '//value//achar(10)
+    end if
+  end subroutine put_line
 
 end module scene_input

@@ -17,7 +17,9 @@ module dsmc_rods
   use kinds, only: dp, i8, pi
   use errors, only: status_t, set_error, exit_bad_input, exit_io, exit_numerical, msg_len
   use method, only: method_t, fname_len, max_out_files
-  use tables, only: table_t, table_open, table_flush, table_close, table_check, rfmt
+  use tables, only: table_t, table_open, table_line, table_flush, table_close, rfmt
+  use ckpt, only: ckpt_writer_t, ckpt_put
+  use, intrinsic :: iso_fortran_env, only: int8
   use scene_input, only: kind_len, check_real, check_int, check_choice, put_real, put_int, &
        put_str, put_logical, int_str, real_str
   use dsmc_collisions, only: collision_t, pair_count, draw_pairs, rod_geometry, point_geometry, &
@@ -61,6 +63,7 @@ module dsmc_rods
     integer(i8) :: bins = 50, entropy_bins = 16
     real(dp) :: v_max = 4.0_dp, omega_max = 4.0_dp
     logical :: collision_audit = .false.
+    integer(i8) :: fourier_modes = 16, onsager_bins = 512   !< as read (validated in load)
     ! state
     type(collision_t) :: law
     real(dp), allocatable :: v(:, :), theta(:), omega(:), u(:), de(:)
@@ -70,13 +73,35 @@ module dsmc_rods
     real(dp) :: audit_de = 0.0_dp, audit_dp = 0.0_dp
     type(table_t) :: hist, histo, samp
   contains
-    procedure :: load, write_scene, open_outputs, advance, finish, close_outputs, output_files
+    procedure :: load, read => read_file, scene_text, open_outputs, advance, finish, close_outputs
+    procedure :: output_files
     procedure :: save_state, restore_state, counters, progress_text, json_fields
   end type rods_t
 
 contains
 
+  !> Read (read_file), validate, resolve and build the initial state.
   subroutine load(self, path, st)
+    class(rods_t), intent(inout) :: self
+    character(len=*), intent(in) :: path
+    type(status_t), intent(inout) :: st
+    call self%read(path, st)
+    if (st%code /= 0) return
+    call validate(self, path, self%fourier_modes, self%onsager_bins, st)
+    if (st%code /= 0) return
+    self%field%modes = int(self%fourier_modes)
+    self%field%bins = int(self%onsager_bins)
+    self%field%inertia = self%inertia
+    self%field%length = self%length
+    self%law = collision_t(self%m, self%inertia, self%length, self%e_v, self%e_w, self%rotation)
+    self%n_steps = nint(self%t_end/self%dt, i8)
+    self%nc = 0
+    if (self%collisions) self%nc = pair_count(self%n, self%dt, self%tau)
+    call initial_state(self)
+  end subroutine load
+
+  !> The scene file's groups (no range checks); I = m L^2/12 resolved for 'thin_rod'.
+  subroutine read_file(self, path, st)
     class(rods_t), intent(inout) :: self
     character(len=*), intent(in) :: path
     type(status_t), intent(inout) :: st
@@ -108,8 +133,8 @@ contains
     rotation = self%rotation
     potential = self%field%potential; alpha = self%field%alpha; beta = self%field%beta
     theta_hat = self%field%theta_hat; onsager_force = self%field%force
-    fourier_modes = self%field%modes
-    onsager_bins = self%field%bins
+    fourier_modes = self%fourier_modes
+    onsager_bins = self%onsager_bins
     history_every = self%history_every; histogram_every = self%histogram_every
     samples_every = self%samples_every; checkpoint_every = self%checkpoint_every
     bins = self%bins; entropy_bins = self%entropy_bins; v_max = self%v_max
@@ -123,7 +148,7 @@ contains
     read(u, nml=scene, iostat=ios, iomsg=iom)
     call group('scene', .true.)
     rewind(u); read(u, nml=rods, iostat=ios, iomsg=iom)
-    call group('rods', .true.)
+    call group('rods', .false.)
     rewind(u); read(u, nml=collisions, iostat=ios, iomsg=iom)
     call group('collisions', .false.)
     rewind(u); read(u, nml=mean_field, iostat=ios, iomsg=iom)
@@ -147,18 +172,9 @@ contains
     self%bins = bins; self%entropy_bins = entropy_bins; self%v_max = v_max
     self%omega_max = omega_max; self%collision_audit = collision_audit
     self%progress_every = progress_every
-    call validate(self, path, fourier_modes, onsager_bins, st)
-    if (st%code /= 0) return
-    self%field%modes = int(fourier_modes)
-    self%field%bins = int(onsager_bins)
+    self%fourier_modes = fourier_modes
+    self%onsager_bins = onsager_bins
     if (trim(self%inertia_model) == 'thin_rod') self%inertia = self%m*self%length**2/12.0_dp
-    self%field%inertia = self%inertia
-    self%field%length = self%length
-    self%law = collision_t(self%m, self%inertia, self%length, self%e_v, self%e_w, self%rotation)
-    self%n_steps = nint(self%t_end/self%dt, i8)
-    self%nc = 0
-    if (self%collisions) self%nc = pair_count(self%n, self%dt, self%tau)
-    call initial_state(self)
   contains
     subroutine group(name, required)
       character(len=*), intent(in) :: name
@@ -170,7 +186,7 @@ contains
         call set_error(st, exit_bad_input, trim(path)//': missing group &'//name)
       end if
     end subroutine group
-  end subroutine load
+  end subroutine read_file
 
   subroutine validate(self, path, fourier_modes, onsager_bins, st)
     class(rods_t), intent(in) :: self
@@ -294,77 +310,58 @@ contains
     self%e_lost = 0.0_dp
   end subroutine initial_state
 
-  subroutine write_scene(self, path, st)
+  function scene_text(self) result(text)
     class(rods_t), intent(in) :: self
-    character(len=*), intent(in) :: path
-    type(status_t), intent(inout) :: st
-    integer :: u, ios
-    character(len=msg_len) :: iom
-    open(newunit=u, file=path, status='replace', action='write', iostat=ios, iomsg=iom)
-    if (ios /= 0) then
-      call set_error(st, exit_io, trim(path)//': cannot write resolved scene: '//trim(iom))
-      return
-    end if
-    write(u, '(a)') '! Resolved scene (every key): kind rods (space-homogeneous DSMC). Units: '// &
-         'mass m, length L, time t0; energies m L^2/t0^2.'
-    write(u, '(a)') '&scene'
-    call put_str(u, 'kind', self%kind, '')
-    call put_str(u, 'title', self%title, '')
-    write(u, '(a)') '/'
-    write(u, '(a)') '&rods'
-    call put_int(u, 'n', self%n, 'samples')
-    call put_real(u, 'm', self%m, 'm')
-    call put_real(u, 'length', self%length, 'L')
-    call put_str(u, 'inertia_model', self%inertia_model, 'given | thin_rod (m L^2/12)')
-    call put_real(u, 'inertia', self%inertia, 'm L^2 (resolved)')
-    call put_str(u, 'v_init', self%v_init, 'two_bumps | maxwellian | bkw')
-    call put_real(u, 'v_shift', self%v_shift, 'L/t0')
-    call put_real(u, 'v_spread', self%v_spread, 'L/t0')
-    call put_str(u, 'theta_init', self%theta_init, 'uniform | gaussian')
-    call put_real(u, 'theta0', self%theta0, 'rad')
-    call put_real(u, 'theta_spread', self%theta_spread, 'rad')
-    call put_real(u, 'omega0', self%omega0, 'rad/t0')
-    call put_real(u, 'omega_spread', self%omega_spread, 'rad/t0')
-    call put_int(u, 'seed', self%seed, '')
-    call put_real(u, 'dt', self%dt, 't0')
-    call put_real(u, 't_end', self%t_end, 't0')
-    write(u, '(a)') '/'
-    write(u, '(a)') '&collisions'
-    call put_logical(u, 'enabled', self%collisions, '')
-    call put_real(u, 'tau', self%tau, 't0 (mean time between collisions)')
-    call put_real(u, 'e_v', self%e_v, 'translational restitution')
-    call put_real(u, 'e_w', self%e_w, 'rotational restitution')
-    call put_logical(u, 'rotation', self%rotation, '.false. = point particles')
-    write(u, '(a)') '/'
-    write(u, '(a)') '&mean_field'
-    call put_str(u, 'potential', self%field%potential, 'none | quadratic | dipole | onsager')
-    call put_real(u, 'alpha', self%field%alpha, 'm L^2/t0^2 (onsager: times L^2)')
-    call put_real(u, 'beta', self%field%beta, '1/t0')
-    call put_real(u, 'theta_hat', self%field%theta_hat, 'rad')
-    call put_str(u, 'onsager_force', self%field%force, 'exact | fourier | histogram')
-    call put_int(u, 'fourier_modes', int(self%field%modes, i8), '')
-    call put_int(u, 'onsager_bins', int(self%field%bins, i8), 'grid points of the histogram form')
-    write(u, '(a)') '/'
-    write(u, '(a)') '&output'
-    call put_int(u, 'history_every', self%history_every, 'steps (0 = off)')
-    call put_int(u, 'histogram_every', self%histogram_every, 'steps (0 = off)')
-    call put_int(u, 'samples_every', self%samples_every, 'steps (0 = off)')
-    call put_int(u, 'checkpoint_every', self%checkpoint_every, 'steps (0 = none)')
-    call put_int(u, 'progress_every', self%progress_every, 'steps (0 = about 200 lines)')
-    call put_int(u, 'bins', self%bins, '')
-    call put_int(u, 'entropy_bins', self%entropy_bins, 'per axis of (vx, vy, omega)')
-    call put_real(u, 'v_max', self%v_max, 'L/t0')
-    call put_real(u, 'omega_max', self%omega_max, 'rad/t0')
-    call put_logical(u, 'collision_audit', self%collision_audit, '')
-    write(u, '(a)', iostat=ios, iomsg=iom) '/'
-    if (ios == 0) flush(u, iostat=ios, iomsg=iom)
-    if (ios == 0) then
-      close(u, iostat=ios, iomsg=iom)
-    else
-      close(u)
-    end if
-    if (ios /= 0) call set_error(st, exit_io, trim(path)//': write failed: '//trim(iom))
-  end subroutine write_scene
+    character(len=:), allocatable :: text
+    character(len=1), parameter :: nl = achar(10)
+    text = '! resolved scene: kind rods (space-homogeneous DSMC). Units: mass m, length L, '// &
+         'time t0; energies m L^2/t0^2.'//nl//'&scene'//nl
+    call put_str(text, 'kind', self%kind, '')
+    call put_str(text, 'title', self%title, '')
+    text = text//'/'//nl//'&rods'//nl
+    call put_int(text, 'n', self%n, 'samples')
+    call put_real(text, 'm', self%m, 'm')
+    call put_real(text, 'length', self%length, 'L')
+    call put_str(text, 'inertia_model', self%inertia_model, 'given | thin_rod (m L^2/12)')
+    call put_real(text, 'inertia', self%inertia, 'm L^2 (resolved)')
+    call put_str(text, 'v_init', self%v_init, 'two_bumps | maxwellian | bkw')
+    call put_real(text, 'v_shift', self%v_shift, 'L/t0')
+    call put_real(text, 'v_spread', self%v_spread, 'L/t0')
+    call put_str(text, 'theta_init', self%theta_init, 'uniform | gaussian')
+    call put_real(text, 'theta0', self%theta0, 'rad')
+    call put_real(text, 'theta_spread', self%theta_spread, 'rad')
+    call put_real(text, 'omega0', self%omega0, 'rad/t0')
+    call put_real(text, 'omega_spread', self%omega_spread, 'rad/t0')
+    call put_int(text, 'seed', self%seed, '')
+    call put_real(text, 'dt', self%dt, 't0')
+    call put_real(text, 't_end', self%t_end, 't0')
+    text = text//'/'//nl//'&collisions'//nl
+    call put_logical(text, 'enabled', self%collisions, '')
+    call put_real(text, 'tau', self%tau, 't0 (mean time between collisions)')
+    call put_real(text, 'e_v', self%e_v, 'translational restitution')
+    call put_real(text, 'e_w', self%e_w, 'rotational restitution')
+    call put_logical(text, 'rotation', self%rotation, '.false. = point particles')
+    text = text//'/'//nl//'&mean_field'//nl
+    call put_str(text, 'potential', self%field%potential, 'none | quadratic | dipole | onsager')
+    call put_real(text, 'alpha', self%field%alpha, 'm L^2/t0^2 (onsager: times L^2)')
+    call put_real(text, 'beta', self%field%beta, '1/t0')
+    call put_real(text, 'theta_hat', self%field%theta_hat, 'rad')
+    call put_str(text, 'onsager_force', self%field%force, 'exact | fourier | histogram')
+    call put_int(text, 'fourier_modes', self%fourier_modes, '')
+    call put_int(text, 'onsager_bins', self%onsager_bins, 'grid points of the histogram form')
+    text = text//'/'//nl//'&output'//nl
+    call put_int(text, 'history_every', self%history_every, 'steps (0 = off)')
+    call put_int(text, 'histogram_every', self%histogram_every, 'steps (0 = off)')
+    call put_int(text, 'samples_every', self%samples_every, 'steps (0 = off)')
+    call put_int(text, 'checkpoint_every', self%checkpoint_every, 'steps (0 = none)')
+    call put_int(text, 'progress_every', self%progress_every, 'steps (0 = about 200 lines)')
+    call put_int(text, 'bins', self%bins, '')
+    call put_int(text, 'entropy_bins', self%entropy_bins, 'per axis of (vx, vy, omega)')
+    call put_real(text, 'v_max', self%v_max, 'L/t0')
+    call put_real(text, 'omega_max', self%omega_max, 'rad/t0')
+    call put_logical(text, 'collision_audit', self%collision_audit, '')
+    text = text//'/'//nl
+  end function scene_text
 
   subroutine open_outputs(self, dir, append, st)
     class(rods_t), intent(inout) :: self
@@ -410,24 +407,22 @@ contains
     class(rods_t), intent(inout) :: self
     logical, intent(in) :: last
     type(status_t), intent(inout) :: st
-    integer :: ios, b, nb
+    integer :: b, nb
     integer(i8) :: i
     real(dp) :: t, eint, h
     real(dp), allocatable :: fx(:), fy(:), fs(:), ft(:), fw(:)
     type(moments_t) :: mo
-    character(len=msg_len) :: iom
+    character(len=600) :: line
     if (.not. self%writing) return
     t = real(self%step, dp)*self%dt
-    iom = ''
     if (due(self%history_every)) then
       mo = sample_moments(self%m, self%inertia, self%rotation, self%v, self%theta, self%omega)
       eint = interaction_energy(self%field, self%theta)
       h = h_estimate(int(self%entropy_bins), self%v_max, self%omega_max, self%v, self%omega)
-      write(self%hist%u, '(i0,15(1x,'//rfmt//'),1x,i0,2(1x,'//rfmt//'))', iostat=ios, &
-           iomsg=iom) self%step, t, mo%t_trans, mo%t_rot, mo%t_all, mo%e_kin, eint, &
+      write(line, '(i0,15(1x,'//rfmt//'),1x,i0,2(1x,'//rfmt//'))') self%step, t, mo%t_trans, mo%t_rot, mo%t_all, mo%e_kin, eint, &
            mo%e_kin + eint, self%e_lost, mo%px, mo%py, mo%spin, mo%s1, mo%s2, mo%m4, h, &
            self%n_collisions, self%audit_de, self%audit_dp
-      call table_check(self%hist, ios, iom, st)
+      call table_line(self%hist, trim(line), st)
       self%audit_de = 0.0_dp
       self%audit_dp = 0.0_dp
     end if
@@ -439,21 +434,18 @@ contains
       ft = histogram(wrap_angle(self%theta), -pi, pi, nb)
       fw = histogram(self%omega, -self%omega_max, self%omega_max, nb)
       do b = 1, nb
-        write(self%histo%u, '(i0,1x,'//rfmt//',1x,i0,10(1x,'//rfmt//'))', iostat=ios, &
-             iomsg=iom) self%step, t, b, centre(-self%v_max, self%v_max), fx(b), &
+        write(line, '(i0,1x,'//rfmt//',1x,i0,10(1x,'//rfmt//'))') self%step, t, b, centre(-self%v_max, self%v_max), fx(b), &
              centre(-self%v_max, self%v_max), fy(b), centre(0.0_dp, self%v_max), fs(b), &
              centre(-pi, pi), ft(b), centre(-self%omega_max, self%omega_max), fw(b)
-        if (ios /= 0) exit
+        call table_line(self%histo, trim(line), st)
       end do
-      call table_check(self%histo, ios, iom, st)
     end if
     if (due(self%samples_every)) then
       do i = 1, self%n
-        write(self%samp%u, '(i0,1x,'//rfmt//',1x,i0,4(1x,'//rfmt//'))', iostat=ios, &
-             iomsg=iom) self%step, t, i, self%v(:, i), self%theta(i), self%omega(i)
-        if (ios /= 0) exit
+        write(line, '(i0,1x,'//rfmt//',1x,i0,4(1x,'//rfmt//'))') self%step, t, i, &
+             self%v(:, i), self%theta(i), self%omega(i)
+        call table_line(self%samp, trim(line), st)
       end do
-      call table_check(self%samp, ios, iom, st)
     end if
   contains
     logical function due(every)
@@ -572,19 +564,23 @@ contains
   end subroutine close_outputs
 
   !> Payload: N, step, counters, generator state, samples, permutation.
-  subroutine save_state(self, u, st)
+  subroutine save_state(self, w)
     class(rods_t), intent(in) :: self
-    integer, intent(in) :: u
-    type(status_t), intent(inout) :: st
-    integer :: ios, k
+    type(ckpt_writer_t), intent(inout) :: w
+    integer(int8), parameter :: b(0) = [integer(int8) ::]
+    integer :: k
     integer, allocatable :: rng(:)
-    character(len=msg_len) :: iom
     call random_seed(size=k)
     allocate(rng(k))
     call random_seed(get=rng)
-    write(u, iostat=ios, iomsg=iom) self%n, self%step, self%n_collisions, self%e_lost, &
-         self%audit_de, self%audit_dp, k, rng, self%v, self%theta, self%omega, self%perm
-    if (ios /= 0) call set_error(st, exit_io, 'checkpoint: write failed: '//trim(iom))
+    call ckpt_put(w, [transfer(self%n, b), transfer(self%step, b), transfer(self%n_collisions, b), &
+         transfer(self%e_lost, b), transfer(self%audit_de, b), transfer(self%audit_dp, b), &
+         transfer(k, b)])
+    call ckpt_put(w, transfer(rng, b))
+    call ckpt_put(w, transfer(self%v, b))
+    call ckpt_put(w, transfer(self%theta, b))
+    call ckpt_put(w, transfer(self%omega, b))
+    call ckpt_put(w, transfer(self%perm, b))
   end subroutine save_state
 
   subroutine restore_state(self, u, st)
@@ -631,13 +627,13 @@ contains
     s = 'T '//trim(adjustl(buf))
   end function progress_text
 
-  subroutine json_fields(self, u)
+  function json_fields(self) result(text)
     class(rods_t), intent(in) :: self
-    integer, intent(in) :: u
-    write(u, '(a,i0,a)') '  "n_particles": ', self%n, ','
-    write(u, '(a,i0,a)') '  "pairs_per_step": ', self%nc, ','
-    write(u, '(a)') '  "units": {"mass": "m", "length": "L", "time": "t0", '// &
-         '"energy": "m L^2/t0^2"},'
-  end subroutine json_fields
+    character(len=:), allocatable :: text
+    text = '  "n_particles": '//int_str(self%n)//','//achar(10)// &
+         '  "pairs_per_step": '//int_str(self%nc)//','//achar(10)// &
+         '  "units": {"mass": "m", "length": "L", "time": "t0", "energy": "m L^2/t0^2"},'// &
+         achar(10)
+  end function json_fields
 
 end module dsmc_rods

@@ -4,11 +4,13 @@
 !> Units: length D1, time T = sqrt(D1/g), mass m1, force m1 g.
 module bed_method
   use kinds, only: dp, i8
-  use errors, only: status_t
+  use errors, only: status_t, set_error, exit_ok
   use method, only: method_t, fname_len, max_out_files
+  use ckpt, only: ckpt_writer_t
+  use scene_input, only: int_str
   use engine, only: sim_t, sim_load, sim_step, pairs_per_step
   use protocol, only: phase_names
-  use scene, only: scene_write
+  use scene, only: scene_text_of => scene_text, scene_read
   use output, only: output_open, output_close, output_flush, output_names
   use checkpoint, only: checkpoint_save, checkpoint_restore
   implicit none
@@ -19,7 +21,7 @@ module bed_method
   type, extends(method_t) :: bed_t
     type(sim_t) :: sim
   contains
-    procedure :: load, write_scene, open_outputs, advance, finish, close_outputs, output_files
+    procedure :: load, read => read_file, scene_text, open_outputs, advance, finish, close_outputs, output_files
     procedure :: save_state, restore_state, counters, progress_text, json_fields
   end type bed_t
 
@@ -37,12 +39,27 @@ contains
     self%progress_every = self%sim%sc%progress_every
   end subroutine load
 
-  subroutine write_scene(self, path, st)
-    class(bed_t), intent(in) :: self
+  !> The scene file as the engine reads it (no range validation).
+  subroutine read_file(self, path, st)
+    class(bed_t), intent(inout) :: self
     character(len=*), intent(in) :: path
     type(status_t), intent(inout) :: st
-    call scene_write(path, self%sim%sc, st)
-  end subroutine write_scene
+    call scene_read(path, self%sim%sc, st)
+  end subroutine read_file
+
+  function scene_text(self) result(text)
+    class(bed_t), intent(in) :: self
+    character(len=:), allocatable :: text
+    text = scene_text_of(self%sim%sc)
+  end function scene_text
+
+  !> A failed write recorded by the bed's outputs becomes the run's status.
+  subroutine output_status(self, st)
+    class(bed_t), intent(in) :: self
+    type(status_t), intent(inout) :: st
+    if (st%code == exit_ok .and. self%sim%o%st%code /= exit_ok) &
+         call set_error(st, self%sim%o%st%code, trim(self%sim%o%st%msg))
+  end subroutine output_status
 
   subroutine open_outputs(self, dir, append, st)
     class(bed_t), intent(inout) :: self
@@ -62,12 +79,14 @@ contains
     class(bed_t), intent(inout) :: self
     type(status_t), intent(inout) :: st
     call sim_step(self%sim, st)
+    call output_status(self, st)
   end subroutine advance
 
   subroutine finish(self, st)
     class(bed_t), intent(inout) :: self
     type(status_t), intent(inout) :: st
     call sim_step(self%sim, st, final=.true.)
+    call output_status(self, st)
   end subroutine finish
 
   subroutine close_outputs(self, flush_only, st)
@@ -75,10 +94,12 @@ contains
     logical, intent(in) :: flush_only
     type(status_t), intent(inout) :: st
     call output_flush(self%sim%o)
-    if (flush_only) return
-    call output_close(self%sim%o)
-    self%sim%writing = .false.
-    self%writing = .false.
+    if (.not. flush_only) then
+      call output_close(self%sim%o)
+      self%sim%writing = .false.
+      self%writing = .false.
+    end if
+    call output_status(self, st)
   end subroutine close_outputs
 
   subroutine output_files(self, names, n)
@@ -99,11 +120,10 @@ contains
     end do
   end subroutine output_files
 
-  subroutine save_state(self, u, st)
+  subroutine save_state(self, w)
     class(bed_t), intent(in) :: self
-    integer, intent(in) :: u
-    type(status_t), intent(inout) :: st
-    call checkpoint_save(u, self%sim%s, self%sim%nl, self%sim%pst, st)
+    type(ckpt_writer_t), intent(inout) :: w
+    call checkpoint_save(w, self%sim%s, self%sim%nl, self%sim%pst)
   end subroutine save_state
 
   subroutine restore_state(self, u, st)
@@ -130,26 +150,35 @@ contains
     s = trim(phase_names(self%sim%s%phase))//' '//trim(adjustl(buf))
   end function progress_text
 
-  subroutine json_fields(self, u)
+  function json_fields(self) result(text)
     class(bed_t), intent(in) :: self
-    integer, intent(in) :: u
+    character(len=:), allocatable :: text
+    character(len=1), parameter :: nl = achar(10)
     associate (m => self%sim%m, sim => self%sim)
-      write(u, '(a,i0,a)') '  "n_particles": ', sim%s%n, ','
-      write(u, '(a,i0,a)') '  "list_builds": ', sim%nl%builds, ','
-      write(u, '(a,i0,a)') '  "pairs_per_step": ', pairs_per_step(sim), ','
-      write(u, '(a,i0,a)') '  "pair_evaluations": ', sim%nl%evaluated, ','
-      write(u, '(a)') '  "units": {'
-      write(u, '(a,'//rfmt//',a)') '    "length_m": ', m%length_unit, ','
-      write(u, '(a,'//rfmt//',a)') '    "time_s": ', m%time_unit, ','
-      write(u, '(a,'//rfmt//',a)') '    "mass_kg": ', m%mass_unit, ','
-      write(u, '(a,'//rfmt//',a)') '    "force_N": ', m%force_unit, ','
-      write(u, '(a,'//rfmt//')') '    "moment_Am2": ', m%moment_unit
-      write(u, '(a)') '  },'
-      write(u, '(a)') '  "groups": {'
-      write(u, '(a,'//rfmt//',a)') '    "F": ', m%big_f, ','
-      write(u, '(a,'//rfmt//')') '    "G": ', m%big_g
-      write(u, '(a)') '  },'
+      text = '  "n_particles": '//int_str(int(sim%s%n, i8))//','//nl// &
+           '  "list_builds": '//int_str(sim%nl%builds)//','//nl// &
+           '  "pairs_per_step": '//int_str(pairs_per_step(sim))//','//nl// &
+           '  "pair_evaluations": '//int_str(sim%nl%evaluated)//','//nl// &
+           '  "units": {'//nl// &
+           '    "length_m": '//r(m%length_unit)//','//nl// &
+           '    "time_s": '//r(m%time_unit)//','//nl// &
+           '    "mass_kg": '//r(m%mass_unit)//','//nl// &
+           '    "force_N": '//r(m%force_unit)//','//nl// &
+           '    "moment_Am2": '//r(m%moment_unit)//nl// &
+           '  },'//nl// &
+           '  "groups": {'//nl// &
+           '    "F": '//r(m%big_f)//','//nl// &
+           '    "G": '//r(m%big_g)//nl// &
+           '  },'//nl
     end associate
-  end subroutine json_fields
+  contains
+    function r(v) result(t)
+      real(dp), intent(in) :: v
+      character(len=:), allocatable :: t
+      character(len=32) :: buf
+      write(buf, '('//rfmt//')') v
+      t = trim(adjustl(buf))
+    end function r
+  end function json_fields
 
 end module bed_method

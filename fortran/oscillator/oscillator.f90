@@ -15,9 +15,11 @@ module oscillator
   use kinds, only: dp, i8
   use errors, only: status_t, set_error, exit_bad_input, exit_io, exit_numerical, msg_len
   use method, only: method_t, fname_len, max_out_files
-  use tables, only: table_t, table_open, table_flush, table_close, table_check, rfmt
+  use tables, only: table_t, table_open, table_line, table_flush, table_close, rfmt
   use scene_input, only: kind_len, check_real, check_int, check_choice, put_real, put_int, &
-       put_str, quoted, int_str
+       put_str, int_str
+  use ckpt, only: ckpt_writer_t, ckpt_put
+  use, intrinsic :: iso_fortran_env, only: int8
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   implicit none
   private
@@ -49,13 +51,27 @@ module oscillator
     integer(i8) :: n_steps = 0
     type(table_t) :: traj, energy
   contains
-    procedure :: load, write_scene, open_outputs, advance, finish, close_outputs, output_files
+    procedure :: load, read => read_file, scene_text, open_outputs, advance, finish, close_outputs, output_files
     procedure :: save_state, restore_state, counters, progress_text, json_fields
   end type oscillator_t
 
 contains
 
+  !> Read (read_file), validate and build the initial state.
   subroutine load(self, path, st)
+    class(oscillator_t), intent(inout) :: self
+    character(len=*), intent(in) :: path
+    type(status_t), intent(inout) :: st
+    call self%read(path, st)
+    if (st%code /= 0) return
+    call validate(self, path, st)
+    if (st%code /= 0) return
+    self%n_steps = nint(self%t_end/self%dt, i8)
+    call initial_state(self)
+  end subroutine load
+
+  !> The scene file's groups (no range checks).
+  subroutine read_file(self, path, st)
     class(oscillator_t), intent(inout) :: self
     character(len=*), intent(in) :: path
     type(status_t), intent(inout) :: st
@@ -82,7 +98,7 @@ contains
     read(u, nml=scene, iostat=ios, iomsg=iom)
     call group('scene', .true.)
     rewind(u); read(u, nml=oscillator, iostat=ios, iomsg=iom)
-    call group('oscillator', .true.)
+    call group('oscillator', .false.)
     rewind(u); read(u, nml=output, iostat=ios, iomsg=iom)
     call group('output', .false.)
     close(u)
@@ -92,10 +108,6 @@ contains
     self%seed = seed; self%integrator = integrator; self%dt = dt; self%t_end = t_end
     self%trajectory_every = trajectory_every; self%energy_every = energy_every
     self%checkpoint_every = checkpoint_every
-    call validate(self, path, st)
-    if (st%code /= 0) return
-    self%n_steps = nint(self%t_end/self%dt, i8)
-    call initial_state(self)
   contains
     subroutine group(name, required)
       character(len=*), intent(in) :: name
@@ -107,7 +119,7 @@ contains
         call set_error(st, exit_bad_input, trim(path)//': missing group &'//name)
       end if
     end subroutine group
-  end subroutine load
+  end subroutine read_file
 
   subroutine validate(self, path, st)
     class(oscillator_t), intent(in) :: self
@@ -155,46 +167,29 @@ contains
     self%step = 0
   end subroutine initial_state
 
-  subroutine write_scene(self, path, st)
+  function scene_text(self) result(text)
     class(oscillator_t), intent(in) :: self
-    character(len=*), intent(in) :: path
-    type(status_t), intent(inout) :: st
-    integer :: u, ios
-    character(len=msg_len) :: iom
-    open(newunit=u, file=path, status='replace', action='write', iostat=ios, iomsg=iom)
-    if (ios /= 0) then
-      call set_error(st, exit_io, trim(path)//': cannot write resolved scene: '//trim(iom))
-      return
-    end if
-    write(u, '(a)') '! Resolved scene (every key): kind oscillator. Units: length L, time tau '// &
-         '(user''s choice), unit mass.'
-    write(u, '(a)') '&scene'
-    call put_str(u, 'kind', self%kind, '')
-    call put_str(u, 'title', self%title, '')
-    write(u, '(a)') '/'
-    write(u, '(a)') '&oscillator'
-    call put_int(u, 'n', self%n, 'oscillators')
-    call put_real(u, 'omega', self%omega, 'rad/tau')
-    call put_real(u, 'zeta', self%zeta, 'damping ratio [1]')
-    call put_real(u, 'amplitude', self%amplitude, 'L')
-    call put_int(u, 'seed', self%seed, 'initial phases')
-    call put_str(u, 'integrator', self%integrator, '')
-    call put_real(u, 'dt', self%dt, 'tau')
-    call put_real(u, 't_end', self%t_end, 'tau')
-    write(u, '(a)') '/'
-    write(u, '(a)') '&output'
-    call put_int(u, 'trajectory_every', self%trajectory_every, 'steps (0 = off)')
-    call put_int(u, 'energy_every', self%energy_every, 'steps (0 = off)')
-    call put_int(u, 'checkpoint_every', self%checkpoint_every, 'steps (0 = none)')
-    write(u, '(a)', iostat=ios, iomsg=iom) '/'
-    if (ios == 0) flush(u, iostat=ios, iomsg=iom)
-    if (ios == 0) then
-      close(u, iostat=ios, iomsg=iom)
-    else
-      close(u)
-    end if
-    if (ios /= 0) call set_error(st, exit_io, trim(path)//': write failed: '//trim(iom))
-  end subroutine write_scene
+    character(len=:), allocatable :: text
+    character(len=1), parameter :: nl = achar(10)
+    text = '! resolved scene: kind oscillator. Units: length L, time tau (the user''s '// &
+         'choice), unit mass.'//nl//'&scene'//nl
+    call put_str(text, 'kind', self%kind, '')
+    call put_str(text, 'title', self%title, '')
+    text = text//'/'//nl//'&oscillator'//nl
+    call put_int(text, 'n', self%n, 'oscillators')
+    call put_real(text, 'omega', self%omega, 'rad/tau')
+    call put_real(text, 'zeta', self%zeta, 'damping ratio [1]')
+    call put_real(text, 'amplitude', self%amplitude, 'L')
+    call put_int(text, 'seed', self%seed, 'initial phases')
+    call put_str(text, 'integrator', self%integrator, '')
+    call put_real(text, 'dt', self%dt, 'tau')
+    call put_real(text, 't_end', self%t_end, 'tau')
+    text = text//'/'//nl//'&output'//nl
+    call put_int(text, 'trajectory_every', self%trajectory_every, 'steps (0 = off)')
+    call put_int(text, 'energy_every', self%energy_every, 'steps (0 = off)')
+    call put_int(text, 'checkpoint_every', self%checkpoint_every, 'steps (0 = none)')
+    text = text//'/'//nl
+  end function scene_text
 
   subroutine open_outputs(self, dir, append, st)
     class(oscillator_t), intent(inout) :: self
@@ -230,27 +225,23 @@ contains
     class(oscillator_t), intent(inout) :: self
     logical, intent(in) :: last
     type(status_t), intent(inout) :: st
-    integer :: ios
     integer(i8) :: i
     real(dp) :: t, ek, ep
-    character(len=msg_len) :: iom
+    character(len=120) :: line
     if (.not. self%writing) return
     t = real(self%step, dp)*self%dt
-    iom = ''
     if (due(self%trajectory_every)) then
       do i = 1, self%n
-        write(self%traj%u, '(i0,1x,'//rfmt//',1x,i0,2(1x,'//rfmt//'))', iostat=ios, iomsg=iom) &
-             self%step, t, i, self%x(i), self%v(i)
-        if (ios /= 0) exit
+        write(line, '(i0,1x,'//rfmt//',1x,i0,2(1x,'//rfmt//'))') self%step, t, i, self%x(i), &
+             self%v(i)
+        call table_line(self%traj, trim(line), st)
       end do
-      call table_check(self%traj, ios, iom, st)
     end if
     if (due(self%energy_every)) then
       ek = 0.5_dp*sum(self%v**2)
       ep = 0.5_dp*self%omega**2*sum(self%x**2)
-      write(self%energy%u, '(i0,4(1x,'//rfmt//'))', iostat=ios, iomsg=iom) self%step, t, ek, ep, &
-           ek + ep
-      call table_check(self%energy, ios, iom, st)
+      write(line, '(i0,4(1x,'//rfmt//'))') self%step, t, ek, ep, ek + ep
+      call table_line(self%energy, trim(line), st)
     end if
   contains
     logical function due(every)
@@ -331,14 +322,13 @@ contains
     self%writing = .false.
   end subroutine close_outputs
 
-  subroutine save_state(self, u, st)
+  subroutine save_state(self, w)
     class(oscillator_t), intent(in) :: self
-    integer, intent(in) :: u
-    type(status_t), intent(inout) :: st
-    integer :: ios
-    character(len=msg_len) :: iom
-    write(u, iostat=ios, iomsg=iom) self%n, self%step, self%x, self%v
-    if (ios /= 0) call set_error(st, exit_io, 'checkpoint: write failed: '//trim(iom))
+    type(ckpt_writer_t), intent(inout) :: w
+    integer(int8), parameter :: b(0) = [integer(int8) ::]
+    call ckpt_put(w, [transfer(self%n, b), transfer(self%step, b)])
+    call ckpt_put(w, transfer(self%x, b))
+    call ckpt_put(w, transfer(self%v, b))
   end subroutine save_state
 
   subroutine restore_state(self, u, st)
@@ -371,13 +361,13 @@ contains
     s = 'run '//trim(adjustl(buf))
   end function progress_text
 
-  subroutine json_fields(self, u)
+  function json_fields(self) result(text)
     class(oscillator_t), intent(in) :: self
-    integer, intent(in) :: u
-    write(u, '(a,i0,a)') '  "n_particles": ', self%n, ','
-    write(u, '(a)') '  "units": {"length": "L", "time": "tau", "mass": "1", '// &
-         '"energy": "L^2/tau^2"},'
-  end subroutine json_fields
+    character(len=:), allocatable :: text
+    text = '  "n_particles": '//int_str(self%n)//','//achar(10)// &
+         '  "units": {"length": "L", "time": "tau", "mass": "1", "energy": "L^2/tau^2"},'// &
+         achar(10)
+  end function json_fields
 
   function rstr(v) result(s)
     real(dp), intent(in) :: v

@@ -589,9 +589,9 @@ def radial_distribution(
     ``rho = (N-1)/(WH)`` uniform random points give ``g = 1`` without the ``1 - 1/N`` bias. Walls are
     hard: nothing is periodic.
 
-    Cost: one KD-tree pair search (``cKDTree.query_pairs``, in strips of about 1e6 pairs) and the exact
-    areas for the particles within ``r_max`` of a wall only; about 1 s at N = 1e5, r_max = 5, 100 bins
-    (``bench/analysis_speed.py``).
+    Cost: one KD-tree pair search (``cKDTree.query_pairs``, in strips of about 1e6 pairs) and the
+    exact areas for the particles within ``r_max`` of a wall only; about 0.5 s at N = 1e5,
+    r_max = 5, 100 bins, one core (``bench/analysis_speed.py``).
 
     Parameters
     ----------

@@ -32,10 +32,10 @@ Tables of :func:`analyze_run` (lengths D1, times T, forces m1 g):
     all frames of the compression phase and this frame).
 ``summary`` (a Series)
     ``N``, ``n_species``, ``R`` (fraction of particles not of species 1; the scene's mix_ratio without
-    frames), ``a`` (D2/D1; 1 for a
-    mono-disperse bed), ``F_max`` (largest F_piston over the compression, phase 2, and the turn-around
-    rows at the lowest piston height, labelled hold or expand: :func:`pyorch.bed.analysis.compression_rows`; of the whole
-    run without a compression phase), ``step_F_max``, ``t_F_max``, ``H_at_F_max``, ``phi_at_F_max``, ``D_hat`` (row nearest
+    frames), ``a`` (D2/D1; 1 for a mono-disperse bed), ``F_max`` (largest F_piston over the
+    compression, phase 2, and the turn-around rows at the lowest piston height, labelled hold or
+    expand: :func:`pyorch.bed.analysis.compression_rows`; of the whole run without a compression
+    phase), ``step_F_max``, ``t_F_max``, ``H_at_F_max``, ``phi_at_F_max``, ``D_hat`` (row nearest
     to the F_max step), ``frame_step`` (the particle frame nearest in step to the F_max step: "maximum
     compression"), and at that frame ``n_interior``, ``n_le4``, ``n5``, ``n6``, ``n7``, ``n_ge8``,
     ``Psi6``, ``Psi6_local``, ``R6_mean``, ``R6_std``, ``delta``.

@@ -24,6 +24,9 @@ Van der Pol-like model, thesis eq. (5.12) ``z'' + 2 a (z^2 - 2 z) z' + w^2 z = g
     :func:`vdp_rhs`, :func:`simulate_vdp`, :func:`fit_vdp` (:class:`VdPFit`)
 Model selection and sparse identification
     :func:`compare_models`, :func:`fit_sindy` (:class:`SindyModel`, needs the optional ``pysindy``)
+Damper runs (the thesis' experiment; identification that refuses rather than invents)
+    :func:`recorded_motion`, :func:`identify_fall` (eq. 5.12 as the thesis fitted it, with
+    ``alpha = a``), :func:`identify_record`, :func:`sweep_metrics`, ``python -m pyorch.bed.damper RUN_DIR``
 Figures
     :func:`plot_fit`, :func:`plot_phase`
 
@@ -37,8 +40,8 @@ the raw height to ``z`` is therefore part of the model. :func:`normalise` uses t
     z = (H - offset) / scale,   H(t0) -> z = 1,   H_eq -> z = z_eq (default -1),
 
 i.e. ``scale = (H0 - H_eq) / (1 - z_eq)`` and ``offset = H_eq - z_eq * scale``, where ``H0`` is the height
-at the start of the record (piston released at rest after the nudge, so ``z(0) = 1, z'(0) = 0`` as in
-thesis Fig. 5.12) and ``H_eq`` the final rest height (tail mean). With ``z_eq = -1`` the rest state lies
+at the start of the record (piston released at rest: the fall of runs/damper.nml, or the release after
+a nudge; so ``z(0) = 1, z'(0) = 0`` as in thesis Fig. 5.12) and ``H_eq`` the final rest height (tail mean). With ``z_eq = -1`` the rest state lies
 in the damped region with linearised damping ``2 a z_eq (z_eq - 2) = 6 a > 0``: for ``a > 0`` it is a
 stable focus and the solution decays to it, as the piston does. The thesis' hand-tuned values
 (``w = 1.05, g0 = -1``, so ``g0 / w^2 = -0.91``) agree with this anchor to ~10 %. The alternatives are not
@@ -46,7 +49,9 @@ meaningful: ``z = H / H_eq`` puts the rest state at ``z = 1`` in the pumped band
 an unstable focus and a limit cycle for ``a > 0``), and ``z = (H - H_eq) / A0`` puts it at ``z = 0``, where
 the linear damping vanishes and ``g0 = 0`` is forced. Time is shifted to start at 0 and divided by
 ``t_scale`` (default 1, i.e. ``T`` units; ``"auto"`` uses ``1 / omega_d`` of a linear-oscillator fit so
-that the damped angular frequency becomes ~1, the thesis' scale ``w ~ 1``).
+that the damped angular frequency becomes ~1, the thesis' scale ``w ~ 1``; ``"gravity"`` uses
+``sqrt(scale / g)``, in which gravity is 1). The thesis does not state its scales; bench/RESULTS.md §9
+gives the fit of the fall in both units (:func:`identify_fall`, ``python -m pyorch.bed.damper RUN_DIR``).
 """
 
 from __future__ import annotations
@@ -1301,10 +1306,11 @@ def identify_record(
     * the fit explains the record: ``r2 >= min_r2``;
     * ``zeta > 0`` and its relative uncertainty is at most ``max_rel_err``.
 
-    Otherwise ``identified`` is 0, ``zeta``/``omega_d`` are NaN and ``reason`` says which test failed.
-    The rest height is ``H_rest`` when given (e.g. the engine's settled state before a nudge), else the
-    mean of the record's settled end (see :func:`_settled_rest`: NaN with the reason when the end still
-    oscillates by more than ``settle_frac`` of the range).
+    Otherwise ``identified`` is 0, ``zeta``/``omega_d`` are NaN and ``reason`` lists every test that
+    failed. The rest height is ``H_rest`` when given (e.g. the engine's settled state before a nudge),
+    else the mean of the record's settled end (see :func:`_settled_rest`); a record whose end still
+    oscillates by more than ``settle_frac`` of its range has no rest height (NaN, and ``reason`` says
+    so), whether or not its oscillation is identified.
 
     Parameters
     ----------
@@ -1316,11 +1322,14 @@ def identify_record(
     dict
         ``identified`` (1.0 or 0.0), ``reason`` (str), ``H_rest`` [D1], ``amplitude`` [D1] (largest
         distance from the rest height), ``zeta``, ``zeta_err``, ``omega_d``, ``omega_d_err`` [1/T],
-        ``n_peaks``, ``r2``.
+        ``n_peaks``, ``r2``, ``err_inflation``. The uncertainties are the fit's formal ones times
+        ``err_inflation`` = sqrt((1 + rho1) / (1 - rho1)), rho1 the lag-1 autocorrelation of the
+        residuals (AR(1) effective sample size: model error makes residuals correlated).
     """
     out: dict[str, Any] = {"identified": 0.0, "reason": "", "H_rest": np.nan, "amplitude": np.nan,
                            "zeta": np.nan, "zeta_err": np.nan, "omega_d": np.nan,
-                           "omega_d_err": np.nan, "n_peaks": np.nan, "r2": np.nan}
+                           "omega_d_err": np.nan, "n_peaks": np.nan, "r2": np.nan,
+                           "err_inflation": np.nan}
     try:
         ta, ha = _tz(t, H, n_min=12)
     except ValueError as exc:
@@ -1341,22 +1350,25 @@ def identify_record(
         return out
     pk = peaks(ta, ha, "max", prominence=max(peak_frac * float(np.ptp(ha)), 1e-12))
     n_peaks = int(np.sum(pk["z"].to_numpy() > lin.z_eq))
-    out.update(n_peaks=float(n_peaks), r2=lin.r2)
+    _, inflation = _residual_correlation(ha - lin(ta))
+    zeta_err = lin.zeta_err * inflation
+    out.update(n_peaks=float(n_peaks), r2=lin.r2, err_inflation=inflation)
     reasons = []
     if n_peaks < min_peaks:
         reasons.append(f"{n_peaks} peaks < min_peaks = {min_peaks}")
     if not lin.r2 >= min_r2:
         reasons.append(f"fit quality r2 = {lin.r2:.3g} < min_r2 = {min_r2:g}")
-    if not (lin.zeta > 0 and lin.zeta_err <= max_rel_err * lin.zeta):
-        reasons.append(f"zeta = {lin.zeta:.3g} +- {lin.zeta_err:.2g} not positive within "
+    if not (lin.zeta > 0 and zeta_err <= max_rel_err * lin.zeta):
+        reasons.append(f"zeta = {lin.zeta:.3g} +- {zeta_err:.2g} not positive within "
                        f"{max_rel_err:.0%}")
+    note = f"; rest height {why_rest}" if why_rest else ""
     if reasons:
-        out["reason"] = "not identified: " + "; ".join(reasons)
+        out["reason"] = "not identified: " + "; ".join(reasons) + note
         return out
     r = math.sqrt(1.0 - lin.zeta**2)
-    wd_err = math.hypot(r * lin.omega_err, lin.omega * lin.zeta / r * lin.zeta_err)
-    out.update(identified=1.0, zeta=lin.zeta, zeta_err=lin.zeta_err, omega_d=lin.omega_d,
-               omega_d_err=wd_err, reason="identified" + (f" ({why_rest})" if why_rest else ""))
+    wd_err = inflation * math.hypot(r * lin.omega_err, lin.omega * lin.zeta / r * lin.zeta_err)
+    out.update(identified=1.0, zeta=lin.zeta, zeta_err=zeta_err, omega_d=lin.omega_d,
+               omega_d_err=wd_err, reason="identified" + note)
     return out
 
 
