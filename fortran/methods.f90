@@ -7,12 +7,13 @@ module methods
   use bed_method, only: bed_t
   use oscillator, only: oscillator_t
   use edmd_dla, only: dla_t
+  use dsmc_rods, only: rods_t
   implicit none
   private
 
   public :: method_for_scene, kind_names
 
-  character(len=*), parameter :: kind_names = "'magnet_bed' | 'oscillator' | 'dla'"
+  character(len=*), parameter :: kind_names = "'magnet_bed' | 'oscillator' | 'dla' | 'rods'"
 
 contains
 
@@ -31,6 +32,8 @@ contains
       allocate(oscillator_t :: m)
     case ('dla')
       allocate(dla_t :: m)
+    case ('rods')
+      allocate(rods_t :: m)
     case default
       call set_error(st, exit_bad_input, trim(path)//": &scene kind = '"//trim(kind)// &
            "': allowed "//kind_names)

@@ -44,6 +44,10 @@ KINDS: dict[str, Kind] = {
         "dla", "edmd", ("scene", "box", "disks", "aggregate", "run", "output"),
         "length L (box unit), mass M, energy E (kT), time tau = L sqrt(M/E)",
         "pyorch.dla", "event-driven hard disks aggregating on a seed (seed 004)"),
+    "rods": Kind(
+        "rods", "dsmc", ("scene", "rods", "collisions", "mean_field", "output"),
+        "mass m (a sample's), length L (a rod's), time t0 of the scene; energies m L^2/t0^2",
+        "pyorch.rods", "space-homogeneous DSMC of rods of vanishing girth (seed 001)"),
 }
 
 _KIND_RE = re.compile(r"""^\s*kind\s*=\s*['"]([^'"]*)['"]""", re.I | re.M)

@@ -1,0 +1,639 @@
+!> Kind 'rods': space-homogeneous DSMC of rods of vanishing girth in the
+!> plane (seed 001). N samples (v in R^2, theta, omega) of f(v, theta, omega, t)
+!> advance by a first-order splitting per step dt:
+!>   1. transport (module dsmc_mean_field): d theta/dt = omega,
+!>      d omega/dt = V(theta, omega) by semi-implicit Euler;
+!>   2. collisions (module dsmc_collisions), Nanbu-Babovsky: floor(N dt/(2 tau))
+!>      disjoint pairs drawn without replacement collide by the rod law
+!>      (needs dt <= tau: larger steps are refused).
+!> f^{n+1} = Q_dt(T_dt(f^n)). Units: mass m (a sample's), length L (a rod's),
+!> time t0 of the scene (tau and dt are in t0); energies m L^2/t0^2.
+!> Random numbers: the intrinsic random_number seeded from &rods seed; the
+!> generator's state and the pair permutation are in the checkpoint, so a
+!> resumed run is bit-identical to an uninterrupted one. OpenMP: the pair loop (all random
+!> numbers drawn on one thread beforehand, pairs disjoint) and the Onsager kicks, so the
+!> samples are the same bits for any thread count.
+module dsmc_rods
+  use kinds, only: dp, i8, pi
+  use errors, only: status_t, set_error, exit_bad_input, exit_io, exit_numerical, msg_len
+  use method, only: method_t, fname_len, max_out_files
+  use tables, only: table_t, table_open, table_line, table_flush, table_close, rfmt
+  use ckpt, only: ckpt_writer_t, ckpt_put
+  use, intrinsic :: iso_fortran_env, only: int8
+  use scene_input, only: kind_len, check_real, check_int, check_choice, put_real, put_int, &
+       put_str, put_logical, int_str, real_str
+  use dsmc_collisions, only: collision_t, pair_count, draw_pairs, rod_geometry, point_geometry, &
+       collide, pair_energy, energy_change
+  use dsmc_mean_field, only: field_t, transport, interaction_energy
+  use dsmc_moments, only: moments_t, sample_moments, h_estimate, histogram, wrap_angle
+  use parallel, only: par_min_loop
+  implicit none
+  private
+
+  public :: rods_t
+
+  integer, parameter :: nlen = 16
+  integer(i8), parameter :: max_steps = 4000000000000000000_i8
+  real(dp), parameter :: runaway_bound = 1.0e100_dp   !< guard on sum |state| (see advance)
+
+  type, extends(method_t) :: rods_t
+    ! &scene
+    character(len=kind_len) :: kind = 'rods'
+    character(len=128) :: title = 'untitled'
+    ! &rods
+    integer(i8) :: n = 10000
+    real(dp) :: m = 1.0_dp, length = 1.0_dp, inertia = 1.0_dp
+    character(len=nlen) :: inertia_model = 'given'     !< given | thin_rod (I = m L^2/12)
+    character(len=nlen) :: v_init = 'two_bumps'        !< two_bumps | maxwellian | bkw
+    real(dp) :: v_shift = 1.0_dp, v_spread = 0.3_dp
+    character(len=nlen) :: theta_init = 'uniform'      !< uniform | gaussian
+    real(dp) :: theta0 = 0.0_dp, theta_spread = 0.0_dp
+    real(dp) :: omega0 = 0.0_dp, omega_spread = 1.0_dp
+    integer(i8) :: seed = 1
+    real(dp) :: dt = 0.05_dp, t_end = 10.0_dp
+    ! &collisions
+    logical :: collisions = .true.
+    real(dp) :: tau = 1.0_dp
+    real(dp) :: e_v = 1.0_dp, e_w = 1.0_dp
+    logical :: rotation = .true.
+    ! &mean_field
+    type(field_t) :: field
+    ! &output
+    integer(i8) :: history_every = 10, histogram_every = 0, samples_every = 0
+    integer(i8) :: bins = 50, entropy_bins = 16
+    real(dp) :: v_max = 4.0_dp, omega_max = 4.0_dp
+    logical :: collision_audit = .false.
+    integer(i8) :: fourier_modes = 16, onsager_bins = 512   !< as read (validated in load)
+    ! state
+    type(collision_t) :: law
+    real(dp), allocatable :: v(:, :), theta(:), omega(:), u(:), de(:)
+    integer(i8), allocatable :: perm(:)
+    integer(i8) :: step = 0, n_steps = 0, n_collisions = 0, nc = 0
+    real(dp) :: e_lost = 0.0_dp        !< energy lost in collisions per sample (formula)
+    real(dp) :: audit_de = 0.0_dp, audit_dp = 0.0_dp
+    type(table_t) :: hist, histo, samp
+  contains
+    procedure :: load, read => read_file, scene_text, open_outputs, advance, finish, close_outputs
+    procedure :: output_files
+    procedure :: save_state, restore_state, counters, progress_text, json_fields
+  end type rods_t
+
+contains
+
+  !> Read (read_file), validate, resolve and build the initial state.
+  subroutine load(self, path, st)
+    class(rods_t), intent(inout) :: self
+    character(len=*), intent(in) :: path
+    type(status_t), intent(inout) :: st
+    call self%read(path, st)
+    if (st%code /= 0) return
+    call validate(self, path, self%fourier_modes, self%onsager_bins, st)
+    if (st%code /= 0) return
+    self%field%modes = int(self%fourier_modes)
+    self%field%bins = int(self%onsager_bins)
+    self%field%inertia = self%inertia
+    self%field%length = self%length
+    self%law = collision_t(self%m, self%inertia, self%length, self%e_v, self%e_w, self%rotation)
+    self%n_steps = nint(self%t_end/self%dt, i8)
+    self%nc = 0
+    if (self%collisions) self%nc = pair_count(self%n, self%dt, self%tau)
+    call initial_state(self)
+  end subroutine load
+
+  !> The scene file's groups (no range checks); I = m L^2/12 resolved for 'thin_rod'.
+  subroutine read_file(self, path, st)
+    class(rods_t), intent(inout) :: self
+    character(len=*), intent(in) :: path
+    type(status_t), intent(inout) :: st
+    character(len=kind_len) :: kind
+    character(len=128) :: title
+    integer(i8) :: n, seed, history_every, histogram_every, samples_every, checkpoint_every, &
+         bins, entropy_bins, progress_every, fourier_modes, onsager_bins
+    real(dp) :: m, length, inertia, v_shift, v_spread, theta0, theta_spread, omega0, &
+         omega_spread, dt, t_end, tau, e_v, e_w, alpha, beta, theta_hat, v_max, omega_max
+    character(len=nlen) :: inertia_model, v_init, theta_init, potential, onsager_force
+    logical :: enabled, rotation, collision_audit
+    integer :: u, ios
+    character(len=msg_len) :: iom
+    namelist /scene/ kind, title
+    namelist /rods/ n, m, length, inertia, inertia_model, v_init, v_shift, v_spread, &
+         theta_init, theta0, theta_spread, omega0, omega_spread, seed, dt, t_end
+    namelist /collisions/ enabled, tau, e_v, e_w, rotation
+    namelist /mean_field/ potential, alpha, beta, theta_hat, onsager_force, fourier_modes, &
+         onsager_bins
+    namelist /output/ history_every, histogram_every, samples_every, checkpoint_every, bins, &
+         entropy_bins, v_max, omega_max, collision_audit, progress_every
+    kind = self%kind; title = self%title
+    n = self%n; m = self%m; length = self%length; inertia = self%inertia
+    inertia_model = self%inertia_model; v_init = self%v_init; v_shift = self%v_shift
+    v_spread = self%v_spread; theta_init = self%theta_init; theta0 = self%theta0
+    theta_spread = self%theta_spread; omega0 = self%omega0; omega_spread = self%omega_spread
+    seed = self%seed; dt = self%dt; t_end = self%t_end
+    enabled = self%collisions; tau = self%tau; e_v = self%e_v; e_w = self%e_w
+    rotation = self%rotation
+    potential = self%field%potential; alpha = self%field%alpha; beta = self%field%beta
+    theta_hat = self%field%theta_hat; onsager_force = self%field%force
+    fourier_modes = self%fourier_modes
+    onsager_bins = self%onsager_bins
+    history_every = self%history_every; histogram_every = self%histogram_every
+    samples_every = self%samples_every; checkpoint_every = self%checkpoint_every
+    bins = self%bins; entropy_bins = self%entropy_bins; v_max = self%v_max
+    omega_max = self%omega_max; collision_audit = self%collision_audit
+    progress_every = self%progress_every
+    open(newunit=u, file=path, status='old', action='read', iostat=ios, iomsg=iom)
+    if (ios /= 0) then
+      call set_error(st, exit_io, trim(path)//': cannot open scene file: '//trim(iom))
+      return
+    end if
+    read(u, nml=scene, iostat=ios, iomsg=iom)
+    call group('scene', .true.)
+    rewind(u); read(u, nml=rods, iostat=ios, iomsg=iom)
+    call group('rods', .false.)
+    rewind(u); read(u, nml=collisions, iostat=ios, iomsg=iom)
+    call group('collisions', .false.)
+    rewind(u); read(u, nml=mean_field, iostat=ios, iomsg=iom)
+    call group('mean_field', .false.)
+    rewind(u); read(u, nml=output, iostat=ios, iomsg=iom)
+    call group('output', .false.)
+    close(u)
+    if (st%code /= 0) return
+    self%kind = kind; self%title = title
+    self%n = n; self%m = m; self%length = length; self%inertia = inertia
+    self%inertia_model = inertia_model; self%v_init = v_init; self%v_shift = v_shift
+    self%v_spread = v_spread; self%theta_init = theta_init; self%theta0 = theta0
+    self%theta_spread = theta_spread; self%omega0 = omega0; self%omega_spread = omega_spread
+    self%seed = seed; self%dt = dt; self%t_end = t_end
+    self%collisions = enabled; self%tau = tau; self%e_v = e_v; self%e_w = e_w
+    self%rotation = rotation
+    self%field%potential = potential; self%field%alpha = alpha; self%field%beta = beta
+    self%field%theta_hat = theta_hat; self%field%force = onsager_force
+    self%history_every = history_every; self%histogram_every = histogram_every
+    self%samples_every = samples_every; self%checkpoint_every = checkpoint_every
+    self%bins = bins; self%entropy_bins = entropy_bins; self%v_max = v_max
+    self%omega_max = omega_max; self%collision_audit = collision_audit
+    self%progress_every = progress_every
+    self%fourier_modes = fourier_modes
+    self%onsager_bins = onsager_bins
+    if (trim(self%inertia_model) == 'thin_rod') self%inertia = self%m*self%length**2/12.0_dp
+  contains
+    subroutine group(name, required)
+      character(len=*), intent(in) :: name
+      logical, intent(in) :: required
+      if (ios > 0) then
+        call set_error(st, exit_bad_input, trim(path)//': &'//name//': cannot read group: '// &
+             trim(iom))
+      else if (ios < 0 .and. required) then
+        call set_error(st, exit_bad_input, trim(path)//': missing group &'//name)
+      end if
+    end subroutine group
+  end subroutine read_file
+
+  subroutine validate(self, path, fourier_modes, onsager_bins, st)
+    class(rods_t), intent(in) :: self
+    character(len=*), intent(in) :: path
+    integer(i8), intent(in) :: fourier_modes, onsager_bins
+    type(status_t), intent(inout) :: st
+    call check_choice(path, 'scene', 'kind', self%kind, ['rods'], st)
+    call check_int(path, 'rods', 'n', self%n, 2_i8, 200000000_i8, st)
+    call check_real(path, 'rods', 'm', self%m, 0.0_dp, 1.0e6_dp, .false., st)
+    call check_real(path, 'rods', 'length', self%length, 0.0_dp, 1.0e6_dp, .false., st)
+    call check_choice(path, 'rods', 'inertia_model', self%inertia_model, &
+         [character(len=nlen) :: 'given', 'thin_rod'], st)
+    call check_real(path, 'rods', 'inertia', self%inertia, 0.0_dp, 1.0e12_dp, .false., st)
+    call check_choice(path, 'rods', 'v_init', self%v_init, &
+         [character(len=nlen) :: 'two_bumps', 'maxwellian', 'bkw'], st)
+    call check_real(path, 'rods', 'v_shift', self%v_shift, -1.0e6_dp, 1.0e6_dp, .true., st)
+    call check_real(path, 'rods', 'v_spread', self%v_spread, 0.0_dp, 1.0e6_dp, .true., st)
+    call check_choice(path, 'rods', 'theta_init', self%theta_init, &
+         [character(len=nlen) :: 'uniform', 'gaussian'], st)
+    call check_real(path, 'rods', 'theta0', self%theta0, -1.0e3_dp, 1.0e3_dp, .true., st)
+    call check_real(path, 'rods', 'theta_spread', self%theta_spread, 0.0_dp, 1.0e3_dp, .true., st)
+    call check_real(path, 'rods', 'omega0', self%omega0, -1.0e6_dp, 1.0e6_dp, .true., st)
+    call check_real(path, 'rods', 'omega_spread', self%omega_spread, 0.0_dp, 1.0e6_dp, .true., st)
+    call check_int(path, 'rods', 'seed', self%seed, 1_i8, 2147483647_i8, st)
+    call check_real(path, 'rods', 't_end', self%t_end, 0.0_dp, 1.0e9_dp, .false., st)
+    call check_real(path, 'collisions', 'tau', self%tau, 0.0_dp, 1.0e12_dp, .false., st)
+    call check_real(path, 'collisions', 'e_v', self%e_v, 0.0_dp, 1.0_dp, .true., st)
+    call check_real(path, 'collisions', 'e_w', self%e_w, 0.0_dp, 1.0_dp, .true., st)
+    if (st%code /= 0) return
+    call check_real(path, 'rods', 'dt', self%dt, 0.0_dp, self%t_end, .false., st)
+    if (st%code /= 0) return
+    if (self%collisions .and. self%dt > self%tau) call set_error(st, exit_bad_input, &
+         trim(path)//': &rods dt = '//real_str(self%dt)//': allowed (0, &collisions tau = '// &
+         real_str(self%tau)//'] (Nanbu-Babovsky draws floor(N dt/(2 tau)) disjoint pairs '// &
+         'per step, at most N/2: dt <= tau)')
+    if (self%t_end/self%dt > real(max_steps, dp)) call set_error(st, exit_bad_input, &
+         trim(path)//': &rods t_end/dt: more than 4e18 steps')
+    call check_choice(path, 'mean_field', 'potential', self%field%potential, &
+         [character(len=nlen) :: 'none', 'quadratic', 'dipole', 'onsager'], st)
+    call check_real(path, 'mean_field', 'alpha', self%field%alpha, 0.0_dp, 1.0e6_dp, .true., st)
+    call check_real(path, 'mean_field', 'beta', self%field%beta, 0.0_dp, 1.0e6_dp, .true., st)
+    call check_real(path, 'mean_field', 'theta_hat', self%field%theta_hat, -1.0e3_dp, 1.0e3_dp, &
+         .true., st)
+    call check_choice(path, 'mean_field', 'onsager_force', self%field%force, &
+         [character(len=nlen) :: 'exact', 'fourier', 'histogram'], st)
+    call check_int(path, 'mean_field', 'fourier_modes', fourier_modes, 1_i8, 1000_i8, st)
+    call check_int(path, 'mean_field', 'onsager_bins', onsager_bins, 8_i8, 8192_i8, st)
+    if (trim(self%field%potential) == 'onsager' .and. trim(self%field%force) == 'exact') &
+         call check_int(path, 'rods', 'n', self%n, 2_i8, 100000_i8, st)   ! O(N^2) per step
+    call check_int(path, 'output', 'history_every', self%history_every, 0_i8, max_steps, st)
+    call check_int(path, 'output', 'histogram_every', self%histogram_every, 0_i8, max_steps, st)
+    call check_int(path, 'output', 'samples_every', self%samples_every, 0_i8, max_steps, st)
+    call check_int(path, 'output', 'checkpoint_every', self%checkpoint_every, 0_i8, max_steps, st)
+    call check_int(path, 'output', 'progress_every', self%progress_every, 0_i8, max_steps, st)
+    call check_int(path, 'output', 'bins', self%bins, 2_i8, 100000_i8, st)
+    call check_int(path, 'output', 'entropy_bins', self%entropy_bins, 2_i8, 128_i8, st)
+    call check_real(path, 'output', 'v_max', self%v_max, 0.0_dp, 1.0e6_dp, .false., st)
+    call check_real(path, 'output', 'omega_max', self%omega_max, 0.0_dp, 1.0e6_dp, .false., st)
+  end subroutine validate
+
+  !> N(0,1) variates by Box-Muller from the intrinsic generator.
+  subroutine normals(x)
+    real(dp), intent(out) :: x(:)
+    real(dp), allocatable :: a(:), b(:)
+    integer(i8) :: n
+    n = size(x, kind=i8)
+    allocate(a(n), b(n))
+    call random_number(a)
+    call random_number(b)
+    x = sqrt(-2.0_dp*log(1.0_dp - a))*cos(2.0_dp*pi*b)
+  end subroutine normals
+
+  !> Samples from the scene's initial law (seeded): v, then theta, then omega.
+  subroutine initial_state(self)
+    class(rods_t), intent(inout) :: self
+    integer :: k
+    integer(i8) :: i
+    integer, allocatable :: put(:)
+    real(dp), allocatable :: a(:), b(:), r(:)
+    call random_seed(size=k)
+    allocate(put(k))
+    put = int(self%seed) + 7919*[(k, k = 1, size(put))]
+    call random_seed(put=put)
+    allocate(self%v(2, self%n), self%theta(self%n), self%omega(self%n), a(self%n), &
+         b(self%n), r(self%n))
+    select case (trim(self%v_init))
+    case ('two_bumps')     ! half the samples around (+v_shift, 0), half around (-v_shift, 0)
+      call normals(a)
+      call normals(b)
+      call random_number(r)
+      self%v(1, :) = merge(self%v_shift, -self%v_shift, r < 0.5_dp) + self%v_spread*a
+      self%v(2, :) = self%v_spread*b
+    case ('maxwellian')
+      call normals(a)
+      call normals(b)
+      self%v(1, :) = self%v_shift + self%v_spread*a
+      self%v(2, :) = self%v_spread*b
+    case ('bkw')           ! f0 = |v|^2 exp(-|v|^2)/pi: |v|^2 ~ Gamma(2, 1), angle uniform
+      call random_number(a)
+      call random_number(b)
+      call random_number(r)
+      r = self%v_spread*sqrt(-log((1.0_dp - a)*(1.0_dp - b)))
+      call random_number(a)
+      self%v(1, :) = r*cos(2.0_dp*pi*a)
+      self%v(2, :) = r*sin(2.0_dp*pi*a)
+    end select
+    if (trim(self%theta_init) == 'uniform') then
+      call random_number(a)
+      self%theta = -pi + 2.0_dp*pi*a
+    else
+      call normals(a)
+      self%theta = self%theta0 + self%theta_spread*a
+    end if
+    call normals(a)
+    self%omega = self%omega0 + self%omega_spread*a
+    if (.not. self%rotation) self%omega = 0.0_dp
+    self%perm = [(i, i = 1, self%n)]
+    allocate(self%u(max(1_i8, 5*self%nc)), self%de(max(1_i8, self%nc)))
+    self%step = 0
+    self%n_collisions = 0
+    self%e_lost = 0.0_dp
+  end subroutine initial_state
+
+  function scene_text(self) result(text)
+    class(rods_t), intent(in) :: self
+    character(len=:), allocatable :: text
+    character(len=1), parameter :: nl = achar(10)
+    text = '! resolved scene: kind rods (space-homogeneous DSMC). Units: mass m, length L, '// &
+         'time t0; energies m L^2/t0^2.'//nl//'&scene'//nl
+    call put_str(text, 'kind', self%kind, '')
+    call put_str(text, 'title', self%title, '')
+    text = text//'/'//nl//'&rods'//nl
+    call put_int(text, 'n', self%n, 'samples')
+    call put_real(text, 'm', self%m, 'm')
+    call put_real(text, 'length', self%length, 'L')
+    call put_str(text, 'inertia_model', self%inertia_model, 'given | thin_rod (m L^2/12)')
+    call put_real(text, 'inertia', self%inertia, 'm L^2 (resolved)')
+    call put_str(text, 'v_init', self%v_init, 'two_bumps | maxwellian | bkw')
+    call put_real(text, 'v_shift', self%v_shift, 'L/t0')
+    call put_real(text, 'v_spread', self%v_spread, 'L/t0')
+    call put_str(text, 'theta_init', self%theta_init, 'uniform | gaussian')
+    call put_real(text, 'theta0', self%theta0, 'rad')
+    call put_real(text, 'theta_spread', self%theta_spread, 'rad')
+    call put_real(text, 'omega0', self%omega0, 'rad/t0')
+    call put_real(text, 'omega_spread', self%omega_spread, 'rad/t0')
+    call put_int(text, 'seed', self%seed, '')
+    call put_real(text, 'dt', self%dt, 't0')
+    call put_real(text, 't_end', self%t_end, 't0')
+    text = text//'/'//nl//'&collisions'//nl
+    call put_logical(text, 'enabled', self%collisions, '')
+    call put_real(text, 'tau', self%tau, 't0 (mean time between collisions)')
+    call put_real(text, 'e_v', self%e_v, 'translational restitution')
+    call put_real(text, 'e_w', self%e_w, 'rotational restitution')
+    call put_logical(text, 'rotation', self%rotation, '.false. = point particles')
+    text = text//'/'//nl//'&mean_field'//nl
+    call put_str(text, 'potential', self%field%potential, 'none | quadratic | dipole | onsager')
+    call put_real(text, 'alpha', self%field%alpha, 'm L^2/t0^2 (onsager: times L^2)')
+    call put_real(text, 'beta', self%field%beta, '1/t0')
+    call put_real(text, 'theta_hat', self%field%theta_hat, 'rad')
+    call put_str(text, 'onsager_force', self%field%force, 'exact | fourier | histogram')
+    call put_int(text, 'fourier_modes', self%fourier_modes, '')
+    call put_int(text, 'onsager_bins', self%onsager_bins, 'grid points of the histogram form')
+    text = text//'/'//nl//'&output'//nl
+    call put_int(text, 'history_every', self%history_every, 'steps (0 = off)')
+    call put_int(text, 'histogram_every', self%histogram_every, 'steps (0 = off)')
+    call put_int(text, 'samples_every', self%samples_every, 'steps (0 = off)')
+    call put_int(text, 'checkpoint_every', self%checkpoint_every, 'steps (0 = none)')
+    call put_int(text, 'progress_every', self%progress_every, 'steps (0 = about 200 lines)')
+    call put_int(text, 'bins', self%bins, '')
+    call put_int(text, 'entropy_bins', self%entropy_bins, 'per axis of (vx, vy, omega)')
+    call put_real(text, 'v_max', self%v_max, 'L/t0')
+    call put_real(text, 'omega_max', self%omega_max, 'rad/t0')
+    call put_logical(text, 'collision_audit', self%collision_audit, '')
+    text = text//'/'//nl
+  end function scene_text
+
+  subroutine open_outputs(self, dir, append, st)
+    class(rods_t), intent(inout) :: self
+    character(len=*), intent(in) :: dir
+    logical, intent(in) :: append
+    type(status_t), intent(inout) :: st
+    character(len=*), parameter :: units = ' Units: mass m, length L, time t0; '// &
+         'E = m L^2/t0^2 (per sample).'
+    if (self%history_every > 0) call table_open(self%hist, dir, 'history.dat', &
+         '# history.dat: DSMC rods, moments per sample.'//units, &
+         '# step t[t0] T_trans[E] T_rot[E] T[E] E_kin[E] E_int[E] E_total[E] E_lost[E] '// &
+         'px[mL/t0] py[mL/t0] spin[mL^2/t0] S1[1] S2[1] M4[L^4/t0^4] H[1] collisions[1] audit_dE[1] '// &
+         'audit_dp[1]', append, st)
+    if (self%histogram_every > 0) call table_open(self%histo, dir, 'histograms.dat', &
+         '# histograms.dat: densities of v_x, v_y, |v|, theta (wrapped to [-pi, pi)), omega '// &
+         'per snapshot.'//units, &
+         '# step t[t0] bin vx[L/t0] f_vx[t0/L] vy[L/t0] f_vy[t0/L] speed[L/t0] f_speed[t0/L] '// &
+         'theta[rad] f_theta[1/rad] omega[rad/t0] f_omega[t0/rad]', append, st)
+    if (self%samples_every > 0) call table_open(self%samp, dir, 'samples.dat', &
+         '# samples.dat: every sample per snapshot (theta not wrapped).'//units, &
+         '# step t[t0] id vx[L/t0] vy[L/t0] theta[rad] omega[rad/t0]', append, st)
+    self%writing = st%code == 0
+  end subroutine open_outputs
+
+  subroutine output_files(self, names, n)
+    class(rods_t), intent(in) :: self
+    character(len=fname_len), intent(out) :: names(max_out_files)
+    integer, intent(out) :: n
+    n = 0
+    names = ''
+    if (self%history_every > 0) then
+      n = n + 1; names(n) = 'history.dat'
+    end if
+    if (self%histogram_every > 0) then
+      n = n + 1; names(n) = 'histograms.dat'
+    end if
+    if (self%samples_every > 0) then
+      n = n + 1; names(n) = 'samples.dat'
+    end if
+  end subroutine output_files
+
+  subroutine write_rows(self, last, st)
+    class(rods_t), intent(inout) :: self
+    logical, intent(in) :: last
+    type(status_t), intent(inout) :: st
+    integer :: b, nb
+    integer(i8) :: i
+    real(dp) :: t, eint, h
+    real(dp), allocatable :: fx(:), fy(:), fs(:), ft(:), fw(:)
+    type(moments_t) :: mo
+    character(len=600) :: line
+    if (.not. self%writing) return
+    t = real(self%step, dp)*self%dt
+    if (due(self%history_every)) then
+      mo = sample_moments(self%m, self%inertia, self%rotation, self%v, self%theta, self%omega)
+      eint = interaction_energy(self%field, self%theta)
+      h = h_estimate(int(self%entropy_bins), self%v_max, self%omega_max, self%v, self%omega)
+      write(line, '(i0,15(1x,'//rfmt//'),1x,i0,2(1x,'//rfmt//'))') self%step, t, mo%t_trans, mo%t_rot, mo%t_all, mo%e_kin, eint, &
+           mo%e_kin + eint, self%e_lost, mo%px, mo%py, mo%spin, mo%s1, mo%s2, mo%m4, h, &
+           self%n_collisions, self%audit_de, self%audit_dp
+      call table_line(self%hist, trim(line), st)
+      self%audit_de = 0.0_dp
+      self%audit_dp = 0.0_dp
+    end if
+    if (due(self%histogram_every)) then
+      nb = int(self%bins)
+      fx = histogram(self%v(1, :), -self%v_max, self%v_max, nb)
+      fy = histogram(self%v(2, :), -self%v_max, self%v_max, nb)
+      fs = histogram(sqrt(self%v(1, :)**2 + self%v(2, :)**2), 0.0_dp, self%v_max, nb)
+      ft = histogram(wrap_angle(self%theta), -pi, pi, nb)
+      fw = histogram(self%omega, -self%omega_max, self%omega_max, nb)
+      do b = 1, nb
+        write(line, '(i0,1x,'//rfmt//',1x,i0,10(1x,'//rfmt//'))') self%step, t, b, centre(-self%v_max, self%v_max), fx(b), &
+             centre(-self%v_max, self%v_max), fy(b), centre(0.0_dp, self%v_max), fs(b), &
+             centre(-pi, pi), ft(b), centre(-self%omega_max, self%omega_max), fw(b)
+        call table_line(self%histo, trim(line), st)
+      end do
+    end if
+    if (due(self%samples_every)) then
+      do i = 1, self%n
+        write(line, '(i0,1x,'//rfmt//',1x,i0,4(1x,'//rfmt//'))') self%step, t, i, &
+             self%v(:, i), self%theta(i), self%omega(i)
+        call table_line(self%samp, trim(line), st)
+      end do
+    end if
+  contains
+    logical function due(every)
+      integer(i8), intent(in) :: every
+      due = every > 0
+      if (due) due = last .or. mod(self%step, every) == 0
+    end function due
+    real(dp) function centre(lo, hi)
+      real(dp), intent(in) :: lo, hi
+      centre = lo + (real(b, dp) - 0.5_dp)*(hi - lo)/real(self%bins, dp)
+    end function centre
+  end subroutine write_rows
+
+  !> One DSMC step: rows due, transport, collisions, guard.
+  subroutine advance(self, st)
+    class(rods_t), intent(inout) :: self
+    type(status_t), intent(inout) :: st
+    call write_rows(self, .false., st)
+    if (st%code /= 0) return
+    call transport(self%field, self%dt, self%theta, self%omega)
+    if (self%nc > 0) call collision_step(self)
+    self%step = self%step + 1
+    ! sum of |values|: NaN and Inf propagate into it, and below runaway_bound every value and
+    ! every square in the moments stays far from overflow (a row is never written with Inf/NaN)
+    if (.not. (sum(abs(self%v)) + sum(abs(self%theta)) + sum(abs(self%omega)) < runaway_bound)) then
+      call set_error(st, exit_numerical, 'rods: non-finite sample (or sum of |v|, |theta|, '// &
+           '|omega| above 1e100) at step '// &
+           int_str(self%step)//' (dt = '//real_str(self%dt)//' t0, &mean_field potential = '// &
+           trim(self%field%potential)//'): explicit transport unstable, reduce dt')
+    else if (trim(self%field%potential) == 'onsager') then
+      if (maxval(abs(self%theta)) >= 1.0e15_dp) call set_error(st, exit_numerical, &
+           'rods: |theta| above 1e15 rad at step '//int_str(self%step)// &
+           ': theta mod pi has no digits left for the Onsager field')
+    end if
+  end subroutine advance
+
+  !> Nanbu-Babovsky: nc disjoint pairs without replacement, the rod law on each. The random
+  !> numbers (pair draw and impact parameters) are drawn on one thread before the pairs are
+  !> processed, and the pairs are disjoint: the samples are bit-identical for any thread count.
+  !> The lost energy is summed from a per-pair buffer in pair order (same bits too).
+  subroutine collision_step(self)
+    class(rods_t), intent(inout) :: self
+    integer(i8) :: nc
+    real(dp) :: ade, adp
+    nc = self%nc
+    call random_number(self%u(1:5*nc))
+    call draw_pairs(self%perm, self%u(1:2*nc), nc)
+    call collide_pairs(self%law, self%collision_audit, self%perm(1:2*nc), self%u(2*nc + 1:5*nc), &
+         self%v, self%theta, self%omega, self%de(1:nc), ade, adp)
+    self%e_lost = self%e_lost - sum(self%de(1:nc))/real(self%n, dp)
+    self%audit_de = max(self%audit_de, ade)
+    self%audit_dp = max(self%audit_dp, adp)
+    self%n_collisions = self%n_collisions + nc
+  end subroutine collision_step
+
+  !> The rod law on the pairs (pidx(2p-1), pidx(2p)) with impact uniforms ug(3p-2:3p);
+  !> de(p) = the formula's energy change; ade, adp = the audit's maxima (0 unless audit).
+  subroutine collide_pairs(law, audit, pidx, ug, v, theta, omega, de, ade, adp)
+    type(collision_t), intent(in) :: law
+    logical, intent(in) :: audit
+    integer(i8), intent(in) :: pidx(:)
+    real(dp), intent(in) :: ug(:), theta(:)
+    real(dp), intent(inout) :: v(:, :), omega(:)
+    real(dp), intent(out) :: de(:), ade, adp
+    integer(i8) :: p, i, j, nc
+    real(dp) :: r1(2), r2(2), n(2), jimp, gt, gr, kk, e0, p0(2), scale
+    nc = size(de, kind=i8)
+    ade = 0.0_dp
+    adp = 0.0_dp
+    e0 = 0.0_dp; p0 = 0.0_dp; scale = 0.0_dp
+    !$omp parallel do schedule(static) if(nc >= par_min_loop) default(shared) &
+    !$omp private(p, i, j, r1, r2, n, jimp, gt, gr, kk) firstprivate(e0, p0, scale) &
+    !$omp reduction(max: ade, adp)
+    do p = 1, nc
+      i = pidx(2*p - 1)
+      j = pidx(2*p)
+      if (law%rotation) then
+        call rod_geometry(theta(i), theta(j), law%length, ug(3*p - 2:3*p), r1, r2, n)
+      else
+        call point_geometry(ug(3*p - 2), r1, r2, n)
+      end if
+      if (audit) then
+        e0 = pair_energy(law, v(:, i), omega(i), v(:, j), omega(j))
+        p0 = v(:, i) + v(:, j)
+        scale = sqrt(sum(v(:, i)**2)) + sqrt(sum(v(:, j)**2))
+      end if
+      call collide(law, v(:, i), omega(i), v(:, j), omega(j), r1, r2, n, jimp, gt, gr, kk)
+      de(p) = energy_change(law, jimp, gt, gr, kk)
+      if (audit) then
+        ade = max(ade, abs(pair_energy(law, v(:, i), omega(i), v(:, j), omega(j)) - e0 - &
+             de(p))/max(e0, tiny(1.0_dp)))
+        adp = max(adp, sqrt(sum((v(:, i) + v(:, j) - p0)**2))/max(scale, tiny(1.0_dp)))
+      end if
+    end do
+    !$omp end parallel do
+  end subroutine collide_pairs
+
+  subroutine finish(self, st)
+    class(rods_t), intent(inout) :: self
+    type(status_t), intent(inout) :: st
+    call write_rows(self, .true., st)
+  end subroutine finish
+
+  subroutine close_outputs(self, flush_only, st)
+    class(rods_t), intent(inout) :: self
+    logical, intent(in) :: flush_only
+    type(status_t), intent(inout) :: st
+    call table_flush(self%hist, st)
+    call table_flush(self%histo, st)
+    call table_flush(self%samp, st)
+    if (flush_only) return
+    call table_close(self%hist, st)
+    call table_close(self%histo, st)
+    call table_close(self%samp, st)
+    self%writing = .false.
+  end subroutine close_outputs
+
+  !> Payload: N, step, counters, generator state, samples, permutation.
+  subroutine save_state(self, w)
+    class(rods_t), intent(in) :: self
+    type(ckpt_writer_t), intent(inout) :: w
+    integer(int8), parameter :: b(0) = [integer(int8) ::]
+    integer :: k
+    integer, allocatable :: rng(:)
+    call random_seed(size=k)
+    allocate(rng(k))
+    call random_seed(get=rng)
+    call ckpt_put(w, [transfer(self%n, b), transfer(self%step, b), transfer(self%n_collisions, b), &
+         transfer(self%e_lost, b), transfer(self%audit_de, b), transfer(self%audit_dp, b), &
+         transfer(k, b)])
+    call ckpt_put(w, transfer(rng, b))
+    call ckpt_put(w, transfer(self%v, b))
+    call ckpt_put(w, transfer(self%theta, b))
+    call ckpt_put(w, transfer(self%omega, b))
+    call ckpt_put(w, transfer(self%perm, b))
+  end subroutine save_state
+
+  subroutine restore_state(self, u, st)
+    class(rods_t), intent(inout) :: self
+    integer, intent(in) :: u
+    type(status_t), intent(inout) :: st
+    integer :: ios, k, kk
+    integer(i8) :: n
+    integer, allocatable :: rng(:)
+    call random_seed(size=k)
+    read(u, iostat=ios) n
+    if (ios == 0 .and. n /= self%n) ios = 1
+    if (ios == 0) read(u, iostat=ios) self%step, self%n_collisions, self%e_lost, self%audit_de, &
+         self%audit_dp, kk
+    if (ios == 0 .and. kk /= k) ios = 1
+    if (ios == 0) then
+      allocate(rng(k))
+      read(u, iostat=ios) rng, self%v, self%theta, self%omega, self%perm
+    end if
+    if (ios == 0 .and. (self%step < 0 .or. self%step > self%n_steps)) ios = 1
+    if (ios == 0 .and. any(self%perm < 1 .or. self%perm > self%n)) ios = 1
+    if (ios == 0) call random_seed(put=rng)
+    if (ios /= 0) call set_error(st, exit_io, 'checkpoint payload does not match the scene')
+  end subroutine restore_state
+
+  subroutine counters(self, done, total, t)
+    class(rods_t), intent(in) :: self
+    integer(i8), intent(out) :: done, total
+    real(dp), intent(out) :: t
+    done = self%step
+    total = self%n_steps
+    t = real(self%step, dp)*self%dt
+  end subroutine counters
+
+  function progress_text(self) result(s)
+    class(rods_t), intent(in) :: self
+    character(len=:), allocatable :: s
+    character(len=30) :: buf
+    real(dp) :: rn, tt, tr
+    rn = real(self%n, dp)       ! T without the angle moments (no trigonometry per line)
+    tt = 0.5_dp*self%m*(sum(self%v**2)/rn - (sum(self%v(1, :))/rn)**2 - (sum(self%v(2, :))/rn)**2)
+    tr = self%inertia*(sum(self%omega**2)/rn - (sum(self%omega)/rn)**2)
+    write(buf, '(es12.5)') merge((2.0_dp*tt + tr)/3.0_dp, tt, self%rotation)
+    s = 'T '//trim(adjustl(buf))
+  end function progress_text
+
+  function json_fields(self) result(text)
+    class(rods_t), intent(in) :: self
+    character(len=:), allocatable :: text
+    text = '  "n_particles": '//int_str(self%n)//','//achar(10)// &
+         '  "pairs_per_step": '//int_str(self%nc)//','//achar(10)// &
+         '  "units": {"mass": "m", "length": "L", "time": "t0", "energy": "m L^2/t0^2"},'// &
+         achar(10)
+  end function json_fields
+
+end module dsmc_rods
