@@ -4,7 +4,7 @@ Used to show that a change of layout or of the runner leaves the step cost alone
 alternate A, B, A, B, ... (each repeat) so that load from other processes hits both alike;
 the table gives the fastest run of each and the median of the per-pair ratios.
 
-    .venv/bin/python bench/ab_engines.py --a /tmp/old/magbed --b .venv/bin/magbed --repeat 5
+    .venv/bin/python bench/ab_engines.py --a /tmp/old/partsim --b .venv/bin/partsim --repeat 5
 
 With ``--instructions`` the step cost is counted, not timed: ``valgrind --tool=callgrind``
 counts the instructions of two run lengths per scene and engine, and their difference divided by

@@ -79,7 +79,7 @@ def model_constants(scene: Any) -> dict[str, float]:
 
 @dataclass(frozen=True)
 class EngineTiming:
-    """Timing of one magbed run, from its run.json."""
+    """Timing of one partsim run, from its run.json."""
 
     n: int
     steps: int
@@ -112,7 +112,7 @@ def timing_of(meta: Mapping[str, Any]) -> EngineTiming:
 
 
 def run_engine(scene: Any, out: Path, threads: int) -> Any:
-    """Run ``scene`` with the magbed executable (OMP_NUM_THREADS=threads) into ``out``."""
+    """Run ``scene`` with the partsim executable (OMP_NUM_THREADS=threads) into ``out``."""
     from pyorch.run import run
 
     return run(scene, out, progress=False, threads=threads)

@@ -15,7 +15,7 @@ truncation at ``--r-cut``), no gravity, no friction, velocity Verlet with
 skin/2 (both engines use that rule).
 
 Order of work:
- 1. magbed runs a 1-step run with frames (initial state, and the fixed cost of
+ 1. partsim runs a 1-step run with frames (initial state, and the fixed cost of
     setup + 2 frames), then the timed run of S steps (frames at 0 and S).
  2. The step-0 positions and velocities (17 digits) become a LAMMPS data file;
     LAMMPS (units lj, dimension 2, boundary f f p, atom_style atomic, mass 1)
@@ -23,7 +23,7 @@ Order of work:
     [--table-lo, r_cut]) -- or ``pair_style lepton`` (analytic) with
     ``--lammps-pair lepton|both`` --, walls on the four edges with
     E = k_wall/2.5 w^-2.5 and cut-off L (every atom feels every wall, as in
-    magbed): ``fix wall/table spline`` on [--table-lo, L] (relative force
+    partsim): ``fix wall/table spline`` on [--table-lo, L] (relative force
     error ~1e-11) or, with ``--lammps-wall lepton``, the analytic
     ``fix wall/lepton`` (about 7x slower than the table, which would bias the
     timing against LAMMPS), fix nve, fix enforce2d, neighbor <skin> bin,
@@ -31,7 +31,7 @@ Order of work:
  3. Checks: the table's force error as LAMMPS evaluates it (pair_write), the
     step-0 forces of both engines, the positions after S steps (max |dr|), the
     neighbour-list sizes and list builds.
- 4. Timing: LAMMPS "Loop time" (excludes its setup); magbed run.json
+ 4. Timing: LAMMPS "Loop time" (excludes its setup); partsim run.json
     wall_time_s/S and the setup-subtracted (wall_S - wall_1)/(S - 1).
 
 Writes its files under bench/out/lammps_compare/ (or --out). Exit 0 with a
@@ -63,7 +63,7 @@ def box_side(n: int, spacing: float) -> float:
 
 def bench_scene(n: int, spacing: float, r_cut: float, skin: float, dt: float, steps: int,
                 frame_every: int, seed: int = 1) -> Any:
-    """The magbed scene: the standard material, walls on, gravity and friction off."""
+    """The partsim scene: the standard material, walls on, gravity and friction off."""
     from pyorch.scene import Scene
 
     side = box_side(n, spacing)
@@ -92,7 +92,7 @@ def pair_table_text(k_pair: float, r_lo: float, r_hi: float, points: int) -> str
     r = np.linspace(r_lo, r_hi, points)
     e = k_pair / 3.0 * r**-3
     f = k_pair * r**-4
-    head = [f"# magbed dipole repulsion: E = (k/3) r^-3, F = k r^-4, k = {k_pair!r}",
+    head = [f"# partsim dipole repulsion: E = (k/3) r^-3, F = k r^-4, k = {k_pair!r}",
             "", "DIPOLE",
             f"N {points} R {r_lo!r} {r_hi!r} FPRIME {-4*k_pair*r_lo**-5!r} "
             f"{-4*k_pair*r_hi**-5!r}", ""]
@@ -101,8 +101,8 @@ def pair_table_text(k_pair: float, r_lo: float, r_hi: float, points: int) -> str
 
 
 def data_file_text(frame: Any, side: float) -> str:
-    """LAMMPS data file (atom_style atomic, 2d, 1 type) from a magbed frame."""
-    lines = ["LAMMPS data file: magbed step-0 state", "",
+    """LAMMPS data file (atom_style atomic, 2d, 1 type) from a partsim frame."""
+    lines = ["LAMMPS data file: partsim step-0 state", "",
              f"{len(frame)} atoms", "1 atom types", "",
              f"0.0 {side!r} xlo xhi", f"0.0 {side!r} ylo yhi", "-0.5 0.5 zlo zhi", "",
              "Masses", "", "1 1.0", "", "Atoms # atomic", ""]
@@ -117,7 +117,7 @@ def data_file_text(frame: Any, side: float) -> str:
 def wall_table_text(k_wall: float, w_lo: float, w_hi: float, points: int) -> str:
     """fix wall/table section WALL: E = k_wall/2.5 w^-2.5, F = k_wall w^-3.5, uniform in w."""
     w = np.linspace(w_lo, w_hi, points)
-    head = [f"# magbed experimental wall: E = (k/2.5) w^-2.5, F = k w^-3.5, k = {k_wall!r}",
+    head = [f"# partsim experimental wall: E = (k/2.5) w^-2.5, F = k w^-3.5, k = {k_wall!r}",
             "", "WALL", f"N {points} FP {-3.5*k_wall*w_lo**-4.5!r} {-3.5*k_wall*w_hi**-4.5!r}",
             ""]
     rows = [f"{i + 1} {w[i]:.17g} {k_wall / 2.5 * w[i]**-2.5:.17g} {k_wall * w[i]**-3.5:.17g}"
@@ -129,7 +129,7 @@ def lammps_commands(data: Path, pair_table: Path, wall_table: Path, pair: str, w
                     k_pair: float, k_wall: float, side: float, r_cut: float, skin: float,
                     dt: float, table_points: int) -> list[str]:
     """Input commands up to (not including) the run. The walls' cut-off is the box
-    side, so every atom feels all four walls at every step, as in magbed."""
+    side, so every atom feels all four walls at every step, as in partsim."""
     if pair == "table":
         pair_cmds = [f"pair_style table linear {table_points}",
                      f"pair_coeff 1 1 {pair_table} DIPOLE {r_cut!r}"]
@@ -308,12 +308,12 @@ def main(argv: Sequence[str] | None = None) -> int:
           f"k_wall = {k_wall:.6f} (experimental walls, w^-3.5)")
     print(f"machine: {load0}")
 
-    # 1. magbed: 1-step run (initial state, fixed costs), then the timed runs
+    # 1. partsim: 1-step run (initial state, fixed costs), then the timed runs
     one = common.run_engine(common.with_steps(scene.with_overrides({"output.frame_every": 1}),
-                                              1, a.dt), a.out / "magbed_1step", threads=1)
+                                              1, a.dt), a.out / "partsim_1step", threads=1)
     t_one = common.timing_of(one.meta)
     init, pos0, f0_ours = frame_arrays(one.frames(), 0)
-    timed = [common.run_engine(scene, a.out / f"magbed_{k}", threads=1)
+    timed = [common.run_engine(scene, a.out / f"partsim_{k}", threads=1)
              for k in range(a.repeat)]
     t_ours = common.best_of([common.timing_of(r.meta) for r in timed])
     _, pos_ours, _ = frame_arrays(timed[0].frames(), a.steps)
@@ -354,8 +354,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                      f"{max_displacement_difference(pos_ours, res.positions):.3e} D1 "
                      f"(max displacement in the run "
                      f"{max_displacement_difference(pos_ours, pos0):.3f} D1)")
-        lines.append(f"    list pairs at the end: magbed {t_ours.pairs_per_step}, LAMMPS "
-                     f"{res.log['neighbors']}; list builds: magbed {t_ours.list_builds} "
+        lines.append(f"    list pairs at the end: partsim {t_ours.pairs_per_step}, LAMMPS "
+                     f"{res.log['neighbors']}; list builds: partsim {t_ours.list_builds} "
                      f"(incl. the initial one), LAMMPS {res.log['builds']} (+1 in setup), "
                      f"dangerous {res.log['dangerous']}")
         print("\n".join(lines))
@@ -364,9 +364,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     steps, n = a.steps, a.n
     sub_s = (t_ours.wall_s - t_one.wall_s) / (steps - 1) if steps > 1 else t_ours.per_step_s
     rows = [
-        {"engine": "magbed (run.json wall/steps)", "per_step": t_ours.per_step_s,
+        {"engine": "partsim (run.json wall/steps)", "per_step": t_ours.per_step_s,
          "ps": n / t_ours.per_step_s, "pairs": t_ours.pairs_per_step / t_ours.per_step_s},
-        {"engine": "magbed (setup-subtracted)", "per_step": sub_s, "ps": n / sub_s,
+        {"engine": "partsim (setup-subtracted)", "per_step": sub_s, "ps": n / sub_s,
          "pairs": t_ours.pairs_per_step / sub_s},
     ]
     for style, res in results.items():
@@ -378,14 +378,14 @@ def main(argv: Sequence[str] | None = None) -> int:
                      "split": f"Pair {pct.get('Pair', math.nan):.0f}% "
                               f"Neigh {pct.get('Neigh', math.nan):.0f}% "
                               f"Modify {pct.get('Modify', math.nan):.0f}%"})
-    print(f"\ntiming, 1 core, best of {a.repeat} (ratio = magbed setup-subtracted "
-          "particle-steps/s over LAMMPS'; > 1: magbed faster)")
+    print(f"\ntiming, 1 core, best of {a.repeat} (ratio = partsim setup-subtracted "
+          "particle-steps/s over LAMMPS'; > 1: partsim faster)")
     print(common.format_table(rows, [("engine", "engine", ""), ("per_step", "s/step", ".4e"),
                                      ("ps", "particle-steps/s", ".4e"),
                                      ("pairs", "pair evals/s", ".4e"),
                                      ("ratio", "ours/LAMMPS", ".3f"),
                                      ("split", "LAMMPS time split", "")]))
-    print(f"\nmagbed: fixed cost of a 1-step run (setup + 2 frames) {t_one.wall_s:.3f} s; "
+    print(f"\npartsim: fixed cost of a 1-step run (setup + 2 frames) {t_one.wall_s:.3f} s; "
           f"timed run wall {t_ours.wall_s:.3f} s")
     print(f"load before: {load0.rsplit(', ', 1)[-1]}; after: {load1.rsplit(', ', 1)[-1]}")
     return 0

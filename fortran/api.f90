@@ -41,7 +41,7 @@ contains
     message = st%msg
   end subroutine run_scene
 
-  !> Continue run directory `rundir` from its checkpoint, as magbed --resume does.
+  !> Continue run directory `rundir` from its checkpoint, as partsim --resume does.
   subroutine resume_run(rundir, code, message)
     character(len=*), intent(in) :: rundir
     integer, intent(out) :: code

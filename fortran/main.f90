@@ -1,10 +1,10 @@
-!> magbed: the standalone engine for every scene kind (dispatch on &scene kind).
-!>   magbed SCENE.nml [--out DIR] [--overwrite] [--check] [--quiet] [--stop-at STEP]
-!>   magbed --resume RUN_DIR [--quiet] [--stop-at STEP]
+!> partsim: the standalone engine for every scene kind (dispatch on &scene kind).
+!>   partsim SCENE.nml [--out DIR] [--overwrite] [--check] [--quiet] [--stop-at STEP]
+!>   partsim --resume RUN_DIR [--quiet] [--stop-at STEP]
 !> Exit codes: 0 ok (or paused by --stop-at), 2 bad input (nothing written),
 !> 3 numerical guard, 4 I/O (a failed write, a refused checkpoint or run
 !> directory), 5 interrupted by SIGTERM/SIGINT (checkpoint written).
-program magbed
+program partsim
   use, intrinsic :: iso_fortran_env, only: error_unit, output_unit
   use, intrinsic :: iso_c_binding, only: c_int
   use kinds, only: i8
@@ -62,9 +62,9 @@ program magbed
     case ('--quiet', '-q')
       quiet = .true.
     case ('--help', '-h')
-      write(output_unit, '(a)') 'usage: magbed SCENE.nml [--out DIR] [--overwrite] [--check] '// &
+      write(output_unit, '(a)') 'usage: partsim SCENE.nml [--out DIR] [--overwrite] [--check] '// &
            '[--quiet] [--stop-at STEP]'
-      write(output_unit, '(a)') '       magbed --resume RUN_DIR [--quiet] [--stop-at STEP]'
+      write(output_unit, '(a)') '       partsim --resume RUN_DIR [--quiet] [--stop-at STEP]'
       stop
     case default
       if (arg(1:1) == '-') call usage('unknown option '//trim(arg))
@@ -93,7 +93,7 @@ program magbed
     call sim_execute(trim(path), trim(dir), .not. quiet, stop_at, overwrite, st)
   end if
   if (st%code /= 0) then
-    write(error_unit, '(a)') 'magbed: error: '//trim(st%msg)
+    write(error_unit, '(a)') 'partsim: error: '//trim(st%msg)
     flush(error_unit)
     call c_exit(int(st%code, c_int))
   end if
@@ -102,12 +102,12 @@ contains
 
   subroutine usage(msg)
     character(len=*), intent(in) :: msg
-    write(error_unit, '(a)') 'magbed: error: '//msg
-    write(error_unit, '(a)') 'usage: magbed SCENE.nml [--out DIR] [--overwrite] [--check] '// &
+    write(error_unit, '(a)') 'partsim: error: '//msg
+    write(error_unit, '(a)') 'usage: partsim SCENE.nml [--out DIR] [--overwrite] [--check] '// &
          '[--quiet] [--stop-at STEP]'
-    write(error_unit, '(a)') '       magbed --resume RUN_DIR [--quiet] [--stop-at STEP]'
+    write(error_unit, '(a)') '       partsim --resume RUN_DIR [--quiet] [--stop-at STEP]'
     flush(error_unit)
     call c_exit(int(exit_bad_input, c_int))
   end subroutine usage
 
-end program magbed
+end program partsim

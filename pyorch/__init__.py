@@ -1,6 +1,6 @@
-"""pyorch: orchestration layer of the magbed engine.
+"""pyorch: orchestration layer of the partsim engine.
 
-Scenes are namelists (``pyorch.scene``), runs go through the ``magbed``
+Scenes are namelists (``pyorch.scene``), runs go through the ``partsim``
 executable or the in-process f2py module (``pyorch.run``), run directories are
 parsed into pandas DataFrames (``pyorch.io``), analysed (``pyorch.bed.analysis``)
 and plotted (``pyorch.bed.plots``).

@@ -1,4 +1,4 @@
-"""Launch runs: the magbed executable (subprocess, progress bar) or the
+"""Launch runs: the partsim executable (subprocess, progress bar) or the
 in-process f2py door. Both write the same run directory."""
 from __future__ import annotations
 
@@ -24,16 +24,16 @@ EXIT_REASONS = {2: "bad input", 3: "numerical guard", 4: "I/O error", 1: "intern
 
 
 def engine_executable() -> Path:
-    """Path of the magbed executable (venv scripts dir first, then PATH)."""
-    candidates = [Path(sysconfig.get_path("scripts")) / "magbed",
-                  Path(sys.executable).parent / "magbed"]
+    """Path of the partsim executable (venv scripts dir first, then PATH)."""
+    candidates = [Path(sysconfig.get_path("scripts")) / "partsim",
+                  Path(sys.executable).parent / "partsim"]
     for c in candidates:
         if c.is_file() and os.access(c, os.X_OK):
             return c
-    found = shutil.which("magbed")
+    found = shutil.which("partsim")
     if found:
         return Path(found)
-    raise RunError("magbed executable not found: install the package (pip install .)", code=1)
+    raise RunError("partsim executable not found: install the package (pip install .)", code=1)
 
 
 @dataclass(frozen=True)
@@ -226,7 +226,7 @@ def _launch(cmd: list[str], out: Path, progress: bool, threads: int | None) -> N
         if code == 0:
             bar.update(bar.total - bar.n)
         bar.close()
-    text = err.strip().removeprefix("magbed: error: ")
+    text = err.strip().removeprefix("partsim: error: ")
     if code < 0:
         raise RunError(f"the engine was killed by signal {-code} (resume with pyorch run "
                        f"--resume {out})", code=128 - code)

@@ -33,7 +33,7 @@ Python API::
     df = sw.run(cluster="slurm", n_workers=40)         # dask-jobqueue SLURMCluster
 
 Execution (dask.distributed): every point is one task, :func:`run_point`,
-which launches the ``magbed`` executable with ``OMP_NUM_THREADS=1`` and never
+which launches the ``partsim`` executable with ``OMP_NUM_THREADS=1`` and never
 raises: a refused or failed point is a row with its status and message.
 
 * ``cluster="local"`` (default): ``LocalCluster`` with ``n_workers`` (default:
@@ -184,7 +184,7 @@ def _read_status(out: Path) -> dict[str, Any] | None:
 
 
 def _live_engines(out: Path) -> list[Any]:
-    """psutil processes of ``magbed`` still writing into ``out`` (orphans of a dead worker)."""
+    """psutil processes of ``partsim`` still writing into ``out`` (orphans of a dead worker)."""
     try:
         import psutil
     except ImportError:  # pragma: no cover - psutil comes with distributed
@@ -193,7 +193,7 @@ def _live_engines(out: Path) -> list[Any]:
     found = []
     for proc in psutil.process_iter(["cmdline"]):
         cmd = proc.info.get("cmdline") or []
-        if not cmd or Path(cmd[0]).name != "magbed":
+        if not cmd or Path(cmd[0]).name != "partsim":
             continue
         dirs = [cmd[i + 1] for i, a in enumerate(cmd[:-1]) if a in ("--out", "--resume")]
         if any(os.path.abspath(d) == target for d in dirs):

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Set-up shared by the README commands: gfortran (apt-get when root), a venv
 # in .venv with the dependencies, and a build + install of this package
-# (engine executable `magbed` on the venv's PATH, f2py module pyorch._engine).
+# (engine executable `partsim` on the venv's PATH, f2py module pyorch._engine).
 # Idempotent: the package is rebuilt only when its sources changed.
 set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -55,8 +55,8 @@ BUILD_STAMP="$VENV/.pyorch-build"
 src_hash=$( (cd "$ROOT" && find fortran pyorch meson.build meson.options pyproject.toml -type f \
   ! -name '*.pyc' -print0 | sort -z | xargs -0 sha256sum; echo "native=${PYORCH_NATIVE:-1}") \
   | sha256sum | cut -c1-16)
-if [ "$(cat "$BUILD_STAMP" 2>/dev/null)" != "$src_hash" ] || [ ! -x "$VENV/bin/magbed" ]; then
-  say "building and installing pyorch + magbed (meson-python)"
+if [ "$(cat "$BUILD_STAMP" 2>/dev/null)" != "$src_hash" ] || [ ! -x "$VENV/bin/partsim" ]; then
+  say "building and installing pyorch + partsim (meson-python)"
   # tuned for this machine (-march=native) unless PYORCH_NATIVE=0
   native=()
   [ "${PYORCH_NATIVE:-1}" = "1" ] && native=(-Csetup-args=-Dnative=true)

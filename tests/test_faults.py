@@ -31,7 +31,7 @@ SMALL = {"particles.n": 60, "cell.width": 16.0, "cell.height": 20.0, "protocol.h
 LONG = dict(SMALL, **{"protocol.t_relax": 30.0, "output.frame_every": 1000})
 
 
-def magbed(*args: str, **kw) -> subprocess.CompletedProcess:
+def partsim(*args: str, **kw) -> subprocess.CompletedProcess:
     return subprocess.run([str(engine_executable()), *args], capture_output=True, text=True,
                           timeout=120, **kw)
 
@@ -44,7 +44,7 @@ def dat_bytes(d: Path) -> dict[str, bytes]:
     return {n: (d / n).read_bytes() for n in FILES if (d / n).is_file()}
 
 
-def one_error_line(stderr: str, prefix: str = "magbed: error: ") -> str:
+def one_error_line(stderr: str, prefix: str = "partsim: error: ") -> str:
     lines = stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith(prefix), stderr
     assert "Traceback" not in stderr and "Fortran runtime" not in stderr
@@ -56,7 +56,7 @@ def small(tmp_path_factory) -> tuple[Path, Path]:
     """SMALL scene and its uninterrupted run (exe door)."""
     base = tmp_path_factory.mktemp("small")
     path = scene_file(base / "small.nml", SMALL)
-    p = magbed(str(path), "--out", str(base / "ref"), "--quiet")
+    p = partsim(str(path), "--out", str(base / "ref"), "--quiet")
     assert p.returncode == 0, p.stderr
     return path, base / "ref"
 
@@ -81,9 +81,9 @@ def test_full_file_system_stops_with_exit_4_and_keeps_a_good_checkpoint(small, t
     path, _ = small
     big = scene_file(tmp_path / "big.nml", dict(SMALL, **{"output.frame_every": 10}))
     ref = tmp_path / "ref"
-    assert magbed(str(big), "--out", str(ref), "--quiet").returncode == 0
+    assert partsim(str(big), "--out", str(ref), "--quiet").returncode == 0
     assert sum(len(b) for b in dat_bytes(ref).values()) > 3 * 2**20  # cannot fit in 2 MiB
-    p = magbed(str(big), "--out", str(tiny_fs / "r"), "--quiet")
+    p = partsim(str(big), "--out", str(tiny_fs / "r"), "--quiet")
     assert p.returncode == 4
     msg = one_error_line(p.stderr)
     assert str(tiny_fs / "r") in msg and "No space left on device" in msg
@@ -96,7 +96,7 @@ def test_full_file_system_stops_with_exit_4_and_keeps_a_good_checkpoint(small, t
     # run resumes and ends byte-identical to the uninterrupted one
     moved = tmp_path / "moved"
     subprocess.run(["cp", "-r", str(tiny_fs / "r"), str(moved)], check=True)
-    assert magbed("--resume", str(moved), "--quiet").returncode == 0
+    assert partsim("--resume", str(moved), "--quiet").returncode == 0
     assert dat_bytes(moved) == dat_bytes(ref)
 
 
@@ -110,7 +110,7 @@ def test_no_space_at_all_fails_in_one_line_through_every_layer(small, tiny_fs):
         pass
     finally:
         os.close(fd)
-    p = magbed(str(path), "--out", str(tiny_fs / "r"), "--quiet")
+    p = partsim(str(path), "--out", str(tiny_fs / "r"), "--quiet")
     assert p.returncode == 4 and "No space left on device" in one_error_line(p.stderr)
     with pytest.raises(RunError) as err:
         run(path, tiny_fs / "r2", progress=False)
@@ -125,11 +125,11 @@ def test_no_space_at_all_fails_in_one_line_through_every_layer(small, tiny_fs):
 def test_a_failed_open_or_rename_stops_with_exit_4_and_keeps_the_old_file(small, tmp_path):
     path, _ = small
     d = tmp_path / "r"
-    assert magbed(str(path), "--out", str(d), "--quiet", "--stop-at", "800").returncode == 0
+    assert partsim(str(path), "--out", str(d), "--quiet", "--stop-at", "800").returncode == 0
     good = (d / "checkpoint.bin").read_bytes()
     # the temporary checkpoint cannot be created: the run stops at its next checkpoint
     (d / "checkpoint.bin.tmp").mkdir()
-    p = magbed("--resume", str(d), "--quiet")
+    p = partsim("--resume", str(d), "--quiet")
     assert p.returncode == 4
     msg = one_error_line(p.stderr)
     assert "checkpoint.bin.tmp: cannot open for writing: Is a directory" in msg
@@ -140,7 +140,7 @@ def test_a_failed_open_or_rename_stops_with_exit_4_and_keeps_the_old_file(small,
     (d / "run.json").unlink()
     (d / "run.json").mkdir()
     (d / "run.json/x").write_text("")
-    p = magbed("--resume", str(d), "--quiet")
+    p = partsim("--resume", str(d), "--quiet")
     assert p.returncode == 4
     assert "run.json: cannot rename into place" in one_error_line(p.stderr)
     assert (d / "checkpoint.bin").read_bytes() == good
@@ -177,7 +177,7 @@ def _payload_byte(b: bytes) -> int:
 
 def _from_other_seed(tmp: Path, small_path: Path):
     other = scene_file(tmp / "seed.nml", dict(SMALL, **{"particles.seed": 99}))
-    assert magbed(str(other), "--out", str(tmp / "o"), "--quiet", "--stop-at", "800").returncode == 0
+    assert partsim(str(other), "--out", str(tmp / "o"), "--quiet", "--stop-at", "800").returncode == 0
 
     def f(p: Path) -> None:
         p.write_bytes((tmp / "o/checkpoint.bin").read_bytes())
@@ -207,7 +207,7 @@ CORRUPTIONS = {
 def test_resume_refuses_a_checkpoint_it_cannot_verify(small, tmp_path, what):
     path, _ = small
     d = tmp_path / "r"
-    assert magbed(str(path), "--out", str(d), "--quiet", "--stop-at", "800").returncode == 0
+    assert partsim(str(path), "--out", str(d), "--quiet", "--stop-at", "800").returncode == 0
     ck = d / "checkpoint.bin"
     _RUN[:] = [d]
     if what == "other seed":
@@ -222,7 +222,7 @@ def test_resume_refuses_a_checkpoint_it_cannot_verify(small, tmp_path, what):
         damage, expect = CORRUPTIONS[what]
     damage(ck)
     before = dat_bytes(d)
-    p = magbed("--resume", str(d), "--quiet")
+    p = partsim("--resume", str(d), "--quiet")
     assert p.returncode == 4
     msg = one_error_line(p.stderr)
     assert str(ck) in msg and expect in msg, msg
@@ -235,11 +235,11 @@ def test_resume_refuses_a_checkpoint_it_cannot_verify(small, tmp_path, what):
 def test_a_truncated_output_file_is_refused_never_padded(small, tmp_path):
     path, _ = small
     d = tmp_path / "r"
-    assert magbed(str(path), "--out", str(d), "--quiet", "--stop-at", "1600").returncode == 0
+    assert partsim(str(path), "--out", str(d), "--quiet", "--stop-at", "1600").returncode == 0
     f = d / "particles.dat"
     f.write_bytes(f.read_bytes()[:-5000])
     size = f.stat().st_size
-    p = magbed("--resume", str(d), "--quiet")
+    p = partsim("--resume", str(d), "--quiet")
     assert p.returncode == 4
     msg = one_error_line(p.stderr)
     assert "particles.dat: refused: shorter than at the checkpoint" in msg
@@ -261,11 +261,11 @@ def test_kill_9_before_any_periodic_checkpoint_resumes_from_step_0(small, tmp_pa
     proc.communicate(timeout=60)
     assert proc.returncode == -9
     assert json.loads((tmp_path / "r/run.json").read_text())["status"] == "running"
-    assert magbed("--resume", str(tmp_path / "r"), "--quiet").returncode == 0
+    assert partsim("--resume", str(tmp_path / "r"), "--quiet").returncode == 0
     assert dat_bytes(tmp_path / "r") == dat_bytes(ref)
     # a run directory without any checkpoint (killed before it was on disk) too
     (tmp_path / "r/checkpoint.bin").unlink()
-    assert magbed("--resume", str(tmp_path / "r"), "--quiet").returncode == 0
+    assert partsim("--resume", str(tmp_path / "r"), "--quiet").returncode == 0
     assert dat_bytes(tmp_path / "r") == dat_bytes(ref)
 
 
@@ -274,10 +274,10 @@ def test_a_directory_holding_another_run_is_refused_unless_overwrite(small, tmp_
     d = tmp_path / "r"
     other = scene_file(tmp_path / "o.nml", dict(SMALL, **{"output.energy_every": 0,
                                                            "particles.seed": 5}))
-    assert magbed(str(path), "--out", str(d), "--quiet", "--stop-at", "800").returncode == 0
+    assert partsim(str(path), "--out", str(d), "--quiet", "--stop-at", "800").returncode == 0
     (d / "checkpoint_failed.bin").write_bytes(b"old")
     before = {p.name: p.read_bytes() for p in d.iterdir()}
-    p = magbed(str(other), "--out", str(d), "--quiet")
+    p = partsim(str(other), "--out", str(d), "--quiet")
     assert p.returncode == 4 and "holds another run" in one_error_line(p.stderr)
     assert {p.name: p.read_bytes() for p in d.iterdir()} == before  # untouched
     with pytest.raises(RunError) as err:
@@ -286,7 +286,7 @@ def test_a_directory_holding_another_run_is_refused_unless_overwrite(small, tmp_
     # --overwrite removes the old run's files: no stale energy.dat or failed checkpoint
     user_file = d / "notes.txt"
     user_file.write_text("mine")
-    assert magbed(str(other), "--out", str(d), "--quiet", "--overwrite").returncode == 0
+    assert partsim(str(other), "--out", str(d), "--quiet", "--overwrite").returncode == 0
     assert not (d / "energy.dat").exists() and not (d / "checkpoint_failed.bin").exists()
     assert user_file.read_text() == "mine"  # only run files are removed
     assert json.loads((d / "run.json").read_text())["status"] == "completed"
@@ -296,7 +296,7 @@ def test_a_directory_holding_another_run_is_refused_unless_overwrite(small, tmp_
     own = tmp_path / "own"
     own.mkdir()
     (own / "scene.nml").write_text(path.read_text())
-    p = magbed("scene.nml", "--overwrite", "--quiet", cwd=own)
+    p = partsim("scene.nml", "--overwrite", "--quiet", cwd=own)
     assert p.returncode == 4 and "refusing to remove it" in one_error_line(p.stderr)
     assert (own / "scene.nml").read_text() == path.read_text()
 
@@ -330,7 +330,7 @@ def test_bad_values_are_refused_by_both_doors_naming_group_and_key(tmp_path, bod
     path = tmp_path / "s.nml"
     path.write_text(KIND + body + "\n")
     t0 = time.perf_counter()
-    p = magbed(str(path), "--out", str(tmp_path / "o"))
+    p = partsim(str(path), "--out", str(tmp_path / "o"))
     assert time.perf_counter() - t0 < 5  # refused before allocating (n = 5e6)
     assert p.returncode == 2 and not (tmp_path / "o").exists()
     msg = one_error_line(p.stderr)
@@ -378,7 +378,7 @@ def test_long_runs_count_steps_in_64_bits(tmp_path):
     path.write_text(KIND + "&protocol t_relax = 1e7 /\n")   # 5e9 steps > 2^31
     info = validate(path)
     assert info["n_steps"] > 2**32
-    p = magbed(str(path), "--check")
+    p = partsim(str(path), "--check")
     assert p.returncode == 0 and f"{info['n_steps']} steps" in p.stdout
 
 
@@ -412,7 +412,7 @@ def test_constructs_read_differently_are_refused_by_both_doors(tmp_path, what):
         path.write_bytes(bytes(range(256)) * 4)
     else:
         path.write_text(text)
-    p = magbed(str(path), "--check")
+    p = partsim(str(path), "--check")
     assert p.returncode == 2
     msg = one_error_line(p.stderr)
     assert msg.startswith(str(path)) and expect in msg, msg
@@ -438,8 +438,8 @@ def test_strings_keep_every_character_and_arrays_their_index(tmp_path):
     assert again == resolve_file(path)
     # and a run directory with that title resumes (its scene.nml round-trips)
     d = tmp_path / "r"
-    assert magbed(str(path), "--out", str(d), "--quiet", "--stop-at", "50").returncode == 0
-    assert magbed("--resume", str(d), "--quiet").returncode == 0
+    assert partsim(str(path), "--out", str(d), "--quiet", "--stop-at", "50").returncode == 0
+    assert partsim("--resume", str(d), "--quiet").returncode == 0
     assert Scene.read(d / "scene.nml").get("scene", "title") == title
 
 
@@ -454,7 +454,7 @@ def test_every_key_the_engine_reads_is_in_the_resolved_scene(tmp_path):
         path = tmp_path / f"{g}.nml"
         path.write_text(KIND + f"&{g} zz_unknown = 1 /\n" if g != "scene"
                         else "&scene kind = 'magnet_bed', zz_unknown = 1 /\n")
-        msg = one_error_line(magbed(str(path), "--check").stderr)
+        msg = one_error_line(partsim(str(path), "--check").stderr)
         known = msg.split("(keys: ")[1].rstrip(")").split(", ")
         assert sorted(known) == sorted(default_keys()[g]), g
 
@@ -510,9 +510,9 @@ def test_cli_keeps_the_engines_exit_codes(small, tmp_path):
 
     path, _ = small
     assert main(["run", str(path), "--out", "", "--quiet", "--no-plots"]) == 2
-    assert magbed(str(path), "--out", "").returncode == 2
+    assert partsim(str(path), "--out", "").returncode == 2
     d = tmp_path / "r"
-    assert magbed(str(path), "--out", str(d), "--quiet", "--stop-at", "400").returncode == 0
+    assert partsim(str(path), "--out", str(d), "--quiet", "--stop-at", "400").returncode == 0
     assert main(["run", str(path), "--out", str(d), "--quiet", "--no-plots"]) == 4  # reused
     _flip_at(_payload_byte)(d / "checkpoint.bin")
     assert main(["run", "--resume", str(d), "--quiet", "--no-plots"]) == 4  # corrupted
@@ -529,7 +529,7 @@ def test_cli_keeps_the_engines_exit_codes(small, tmp_path):
 def long_ref(tmp_path_factory) -> tuple[Path, Path]:
     base = tmp_path_factory.mktemp("long")
     path = scene_file(base / "long.nml", LONG)
-    assert magbed(str(path), "--out", str(base / "ref"), "--quiet").returncode == 0
+    assert partsim(str(path), "--out", str(base / "ref"), "--quiet").returncode == 0
     return path, base / "ref"
 
 

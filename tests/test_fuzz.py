@@ -67,7 +67,7 @@ def check_outcome(proc: subprocess.CompletedProcess, out: Path) -> None:
     assert proc.returncode in (0, 2, 3), (proc.returncode, proc.stderr)
     if proc.returncode == 2:
         assert not out.exists(), "a refused scene must not create its run directory"
-        assert len(proc.stderr.strip().splitlines()) == 1 and "magbed: error:" in proc.stderr
+        assert len(proc.stderr.strip().splitlines()) == 1 and "partsim: error:" in proc.stderr
         return
     meta = json.loads((out / "run.json").read_text())
     assert meta["exit_code"] == proc.returncode
@@ -181,7 +181,7 @@ def scene_text(draw) -> str:
 @settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(text=scene_text())
 def test_both_doors_read_a_file_alike_or_refuse_it_alike(tmp_path_factory, text):
-    """magbed --check and pyorch (Scene.read, validate) give the same verdict
+    """partsim --check and pyorch (Scene.read, validate) give the same verdict
     with the same message; an accepted file written back by pyorch is the
     same scene for the engine."""
     from pyorch import SceneError
@@ -202,7 +202,7 @@ def test_both_doors_read_a_file_alike_or_refuse_it_alike(tmp_path_factory, text)
     except SceneError as exc:
         py_msg = str(exc)
     if proc.returncode == 2:
-        assert py_msg == proc.stderr.strip().removeprefix("magbed: error: ")
+        assert py_msg == proc.stderr.strip().removeprefix("partsim: error: ")
         return
     assert py_msg is None
     assert resolve_file(sc.write(tmp / "back.nml")) == resolve_file(path)

@@ -25,7 +25,7 @@ SMALL = {"particles.n": 120, "cell.width": 24.0, "cell.height": 30.0, "protocol.
          "integration.r_cut": 6.0, "integration.tail": "frozen", "integration.tail_every": 50}
 
 
-def magbed(*args: str, **kw) -> subprocess.CompletedProcess:
+def partsim(*args: str, **kw) -> subprocess.CompletedProcess:
     return subprocess.run([str(engine_executable()), *args], capture_output=True, text=True,
                           timeout=120, **kw)
 
@@ -51,7 +51,7 @@ def assert_identical(a: Path, b: Path) -> None:
 
 def test_pause_and_resume_is_bit_identical(straight, tmp_path):
     scene, ref = straight
-    p = magbed(str(scene), "--out", str(tmp_path / "r"), "--quiet", "--stop-at", "2000")
+    p = partsim(str(scene), "--out", str(tmp_path / "r"), "--quiet", "--stop-at", "2000")
     assert p.returncode == 0, p.stderr
     meta = json.loads((tmp_path / "r/run.json").read_text())
     assert meta["status"].startswith("paused at step 2000") and meta["steps_done"] == 2000
@@ -61,7 +61,7 @@ def test_pause_and_resume_is_bit_identical(straight, tmp_path):
 
 
 def interrupt_at_random_step(scene: Path, out: Path, sig: int, seed: int) -> tuple[int, int]:
-    """Start magbed, wait (via its progress lines) until a random step is
+    """Start partsim, wait (via its progress lines) until a random step is
     passed, send the signal; return (exit code, step reached when signalled)."""
     proc = subprocess.Popen([str(engine_executable()), str(scene), "--out", str(out)],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -107,7 +107,7 @@ def test_kill_9_loses_at_most_one_checkpoint_interval(straight, tmp_path):
 
 def test_resume_through_the_cli(straight, tmp_path):
     scene, ref = straight
-    magbed(str(scene), "--out", str(tmp_path / "r"), "--quiet", "--stop-at", "1500")
+    partsim(str(scene), "--out", str(tmp_path / "r"), "--quiet", "--stop-at", "1500")
     from pyorch.cli import main
 
     assert main(["run", "--resume", str(tmp_path / "r"), "--quiet", "--no-plots"]) == 0
@@ -116,7 +116,7 @@ def test_resume_through_the_cli(straight, tmp_path):
 
 def test_resume_through_the_f2py_door(straight, tmp_path):
     scene, ref = straight
-    magbed(str(scene), "--out", str(tmp_path / "r"), "--quiet", "--stop-at", "2500")
+    partsim(str(scene), "--out", str(tmp_path / "r"), "--quiet", "--stop-at", "2500")
     resume(tmp_path / "r", door="f2py", progress=False)
     assert_identical(ref, tmp_path / "r")
 
@@ -125,7 +125,7 @@ def test_resume_of_a_directory_without_run_is_refused(tmp_path):
     (tmp_path / "r").mkdir()
     with pytest.raises(RunError, match="not a run directory"):
         resume(tmp_path / "r", progress=False)
-    p = magbed("--resume", str(tmp_path / "r"))
+    p = partsim("--resume", str(tmp_path / "r"))
     assert p.returncode == 4 and "not a run directory (no scene.nml)" in p.stderr
 
 
@@ -170,7 +170,7 @@ def test_head_on_collision_with_large_dt_stops_cleanly(door, make_scene, api):
 def test_exe_guard_writes_failed_checkpoint_and_status(make_scene, tmp_path):
     path = make_scene("demo", dict(SMALL, **{"protocol.piston_speed": 40.0,
                                              "output.checkpoint_every": 0}))
-    p = magbed(str(path), "--out", str(tmp_path / "r"), "--quiet")
+    p = partsim(str(path), "--out", str(tmp_path / "r"), "--quiet")
     assert p.returncode == 3
     assert len(p.stderr.strip().splitlines()) == 1
     assert "min_distance" in p.stderr or "left the cell" in p.stderr
@@ -227,7 +227,7 @@ def test_strong_magnets_at_the_default_dt_stop_cleanly(make_scene, tmp_path):
     """Magnetisation x100 without shrinking dt: refused at run time with a
     guard message and exit code 3, never NaN in the files."""
     path = make_scene("demo", dict(EXTREME_BED, **{"material.remanence": 130.0}))
-    p = magbed(str(path), "--out", str(tmp_path / "r"), "--quiet")
+    p = partsim(str(path), "--out", str(tmp_path / "r"), "--quiet")
     assert p.returncode == 3, p.stderr
     for name in ("piston.dat", "particles.dat"):
         df = io.read_dat(tmp_path / "r" / name)

@@ -1,6 +1,6 @@
 """Structure/force analysis of run directories (pyorch.bed.analyze) and its figures (pyorch.bed.structure_plots).
 
-A small real run (80 particles, ~8500 steps, < 1 s) is made once per module through the magbed
+A small real run (80 particles, ~8500 steps, < 1 s) is made once per module through the partsim
 executable; bi-disperse runs are faked by rewriting the species column of its particles.dat (and the
 species of its scene.nml) until the engine writes them itself.
 """

@@ -36,7 +36,7 @@ contains
     per_step = 0
     if (done > 0) per_step = wall/real(done, dp)
     text = '{'//nl// &
-         '  "program": "magbed",'//nl// &
+         '  "program": "partsim",'//nl// &
          '  "version": "'//trim(engine_version)//'",'//nl// &
          '  "compiler": "'//json_escape(compiler_id())//'",'//nl// &
          '  "kind": "'//json_escape(trim(kind))//'",'//nl// &
