@@ -11,8 +11,9 @@ counts the instructions of two run lengths per scene and engine, and their diffe
 the extra steps is the cost of one step without the set-up. Counts do not depend on other load
 on the machine (the same total twice), so a 1 % difference is a real one.
 
-Both executables must read the same scene format (the scenes are written by this checkout's
-pyorch). Output: bench/results/ab_engines.csv.
+The scene file (``--scene``, default runs/standard.nml) is patched with f90nml, not resolved by
+this checkout's engine, so an older executable reads it too: give it a scene both understand
+(e.g. the older checkout's runs/standard.nml). Output: bench/results/ab_engines.csv.
 """
 from __future__ import annotations
 
@@ -27,21 +28,27 @@ from pathlib import Path
 import pandas as pd
 
 import common
-from pyorch.scene import Scene
+import f90nml
 
 SCENES = {
-    # (label, base scene, overrides): whole steps of the shipped force paths
-    "standard N=368 verlet+tail": ("standard", {"protocol.t_relax": 4.0, "protocol.h0": 75.0,
-                                                "protocol.hf": 70.0, "protocol.expand": False,
-                                                "protocol.t_final": 0.0,
+    # (label, base scene, overrides): whole steps of the shipped force paths on the standard bed,
+    # piston fixed at its start height (run length t_end)
+    "standard N=368 verlet+tail": ("standard", {"protocol.piston": "fixed", "protocol.t_end": 4.0,
                                                 "output.distance_every": 0}),
     "standard N=368 all pairs": ("standard", {"integration.neighbour": "all_pairs",
                                               "integration.tail": "none",
-                                              "protocol.t_relax": 4.0, "protocol.h0": 75.0,
-                                              "protocol.hf": 72.0, "protocol.expand": False,
-                                              "protocol.t_final": 0.0,
+                                              "protocol.piston": "fixed", "protocol.t_end": 4.0,
                                               "output.distance_every": 0}),
 }
+
+def patched(scene: Path, over: dict, out: Path) -> Path:
+    """``scene`` with ``{"group.key": value}`` overrides, written to ``out``."""
+    nml = f90nml.read(str(scene))
+    for dotted, value in over.items():
+        g, k = dotted.split(".", 1)
+        nml.setdefault(g, f90nml.Namelist())[k] = value
+    nml.write(str(out), force=True)
+    return out
 
 
 def one(exe: str, scene: Path, out: Path) -> float:
@@ -65,15 +72,13 @@ def instructions(exe: str, scene: Path, out: Path) -> int:
     return int(m.group(1))
 
 
-def per_step_instructions(exe: str, base: str, over: dict, tmp: Path, tag: str) -> float:
+def per_step_instructions(exe: str, scene: Path, over: dict, tmp: Path, tag: str) -> float:
     """(I(long) - I(short)) / extra steps: instructions of one step, set-up removed."""
     counts = []
-    for t_relax in (2.0, 4.0):
-        sc = Scene.read(common.REPO / "runs" / f"{base}.nml").with_overrides(
-            {**over, "protocol.t_relax": t_relax})
-        path = sc.write(tmp / f"{tag}_{t_relax}.nml")
-        counts.append(instructions(exe, path, tmp / f"{tag}_{t_relax}"))
-    dt = float(Scene.read(common.REPO / "runs" / f"{base}.nml").get("integration", "dt"))
+    for t_end in (2.0, 4.0):
+        path = patched(scene, {**over, "protocol.t_end": t_end}, tmp / f"{tag}_{t_end}.nml")
+        counts.append(instructions(exe, path, tmp / f"{tag}_{t_end}"))
+    dt = float(f90nml.read(str(scene))["integration"]["dt"])
     return (counts[1] - counts[0]) / round(2.0 / dt)
 
 
@@ -83,6 +88,7 @@ def main() -> None:
     ap.add_argument("--a", required=True, help="reference executable")
     ap.add_argument("--b", required=True, help="executable under test")
     ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--scene", type=Path, default=common.REPO / "runs" / "standard.nml")
     ap.add_argument("--instructions", action="store_true",
                     help="count instructions per step with callgrind instead of timing")
     args = ap.parse_args()
@@ -90,16 +96,15 @@ def main() -> None:
     if args.instructions:
         with tempfile.TemporaryDirectory() as tmp:
             for k, (label, (base, over)) in enumerate(SCENES.items()):
-                ia = per_step_instructions(args.a, base, over, Path(tmp), f"a{k}")
-                ib = per_step_instructions(args.b, base, over, Path(tmp), f"b{k}")
+                ia = per_step_instructions(args.a, args.scene, over, Path(tmp), f"a{k}")
+                ib = per_step_instructions(args.b, args.scene, over, Path(tmp), f"b{k}")
                 rows.append({"scene": label, "A_instructions_per_step": ia,
                              "B_instructions_per_step": ib, "B_over_A": ib / ia})
         common.save_table(pd.DataFrame(rows), "ab_instructions.csv")
         return
     with tempfile.TemporaryDirectory() as tmp:
         for label, (base, over) in SCENES.items():
-            scene = Scene.read(common.REPO / "runs" / f"{base}.nml").with_overrides(over)
-            path = scene.write(Path(tmp) / f"{base}.nml")
+            path = patched(args.scene, over, Path(tmp) / f"{base}.nml")
             ta, tb = [], []
             for k in range(args.repeat):
                 ta.append(one(args.a, path, Path(tmp) / f"a{k}{len(rows)}"))
