@@ -33,11 +33,11 @@ import f90nml
 SCENES = {
     # (label, base scene, overrides): whole steps of the shipped force paths on the standard bed,
     # piston fixed at its start height (run length t_end)
-    "standard N=368 verlet+tail": ("standard", {"protocol.piston": "fixed", "protocol.t_end": 4.0,
+    "standard N=368 verlet+tail": ("standard", {"protocol.piston": "fixed", "protocol.t_end": 20.0,
                                                 "output.distance_every": 0}),
     "standard N=368 all pairs": ("standard", {"integration.neighbour": "all_pairs",
                                               "integration.tail": "none",
-                                              "protocol.piston": "fixed", "protocol.t_end": 4.0,
+                                              "protocol.piston": "fixed", "protocol.t_end": 20.0,
                                               "output.distance_every": 0}),
 }
 
