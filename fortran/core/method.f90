@@ -17,7 +17,7 @@ module method
   implicit none
   private
 
-  public :: method_t, fname_len, max_out_files
+  public :: method_t, fname_len, max_out_files, add_output
 
   integer, parameter :: fname_len = 32      !< length of an output file name
   integer, parameter :: max_out_files = 8   !< output files per method (checkpoint sizes)
@@ -122,6 +122,17 @@ module method
   end interface
 
 contains
+
+  !> Append `name` to an output_files list when `on` (the file is written by this scene).
+  subroutine add_output(names, n, on, name)
+    character(len=fname_len), intent(inout) :: names(max_out_files)
+    integer, intent(inout) :: n
+    logical, intent(in) :: on
+    character(len=*), intent(in) :: name
+    if (.not. on) return
+    n = n + 1
+    names(n) = name
+  end subroutine add_output
 
   !> Read the scene file only (file-level and type checks, no range
   !> validation), for resolving a scene as the engine reads it. A method

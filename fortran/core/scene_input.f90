@@ -9,7 +9,7 @@ module scene_input
   implicit none
   private
 
-  public :: kind_len, read_kind, read_text, max_scene_bytes, check_real, check_int, check_choice, &
+  public :: kind_len, read_kind, read_text, max_scene_bytes, open_scene, group_status, check_real, check_int, check_choice, &
        put_real, put_int, put_str, put_logical, quoted, real_str, int_str
 
   integer, parameter :: kind_len = 32
@@ -175,6 +175,36 @@ contains
       if (s(k:k) >= 'A' .and. s(k:k) <= 'Z') r(k:k) = achar(iachar(s(k:k)) + 32)
     end do
   end function lower_case
+
+  !> Open a scene file for reading namelist groups (exit_io naming the file if it cannot).
+  subroutine open_scene(path, u, st)
+    character(len=*), intent(in) :: path
+    integer, intent(out) :: u
+    type(status_t), intent(inout) :: st
+    integer :: ios
+    character(len=msg_len) :: iom
+    iom = ''
+    open(newunit=u, file=path, status='old', action='read', iostat=ios, iomsg=iom)
+    if (ios /= 0) then
+      u = -1
+      call set_error(st, exit_io, trim(path)//': cannot open scene file: '//trim(iom))
+    end if
+  end subroutine open_scene
+
+  !> The status of one namelist group read (ios, iom of the read): a malformed
+  !> group is refused naming it; an absent one keeps its defaults unless required.
+  subroutine group_status(path, name, ios, iom, required, st)
+    character(len=*), intent(in) :: path, name, iom
+    integer, intent(in) :: ios
+    logical, intent(in) :: required
+    type(status_t), intent(inout) :: st
+    if (ios > 0) then
+      call set_error(st, exit_bad_input, trim(path)//': &'//name//': cannot read group: '// &
+           trim(iom))
+    else if (ios < 0 .and. required) then
+      call set_error(st, exit_bad_input, trim(path)//': missing group &'//name)
+    end if
+  end subroutine group_status
 
   !> A finite real in [lo, hi] (open at lo unless lo_closed).
   subroutine check_real(path, group, key, v, lo, hi, lo_closed, st)

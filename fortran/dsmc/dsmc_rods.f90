@@ -16,11 +16,11 @@
 module dsmc_rods
   use kinds, only: dp, i8, pi
   use errors, only: status_t, set_error, exit_bad_input, exit_io, exit_numerical, msg_len
-  use method, only: method_t, fname_len, max_out_files
+  use method, only: method_t, fname_len, max_out_files, add_output
   use tables, only: table_t, table_open, table_line, table_flush, table_close, rfmt
   use ckpt, only: ckpt_writer_t, ckpt_put
   use, intrinsic :: iso_fortran_env, only: int8
-  use scene_input, only: kind_len, check_real, check_int, check_choice, put_real, put_int, &
+  use scene_input, only: open_scene, group_status, kind_len, check_real, check_int, check_choice, put_real, put_int, &
        put_str, put_logical, int_str, real_str
   use dsmc_collisions, only: collision_t, pair_count, draw_pairs, rod_geometry, point_geometry, &
        collide, pair_energy, energy_change
@@ -140,21 +140,18 @@ contains
     bins = self%bins; entropy_bins = self%entropy_bins; v_max = self%v_max
     omega_max = self%omega_max; collision_audit = self%collision_audit
     progress_every = self%progress_every
-    open(newunit=u, file=path, status='old', action='read', iostat=ios, iomsg=iom)
-    if (ios /= 0) then
-      call set_error(st, exit_io, trim(path)//': cannot open scene file: '//trim(iom))
-      return
-    end if
+    call open_scene(path, u, st)
+    if (st%code /= 0) return
     read(u, nml=scene, iostat=ios, iomsg=iom)
-    call group('scene', .true.)
+    call group_status(path, 'scene', ios, iom, .true., st)
     rewind(u); read(u, nml=rods, iostat=ios, iomsg=iom)
-    call group('rods', .false.)
+    call group_status(path, 'rods', ios, iom, .false., st)
     rewind(u); read(u, nml=collisions, iostat=ios, iomsg=iom)
-    call group('collisions', .false.)
+    call group_status(path, 'collisions', ios, iom, .false., st)
     rewind(u); read(u, nml=mean_field, iostat=ios, iomsg=iom)
-    call group('mean_field', .false.)
+    call group_status(path, 'mean_field', ios, iom, .false., st)
     rewind(u); read(u, nml=output, iostat=ios, iomsg=iom)
-    call group('output', .false.)
+    call group_status(path, 'output', ios, iom, .false., st)
     close(u)
     if (st%code /= 0) return
     self%kind = kind; self%title = title
@@ -175,17 +172,6 @@ contains
     self%fourier_modes = fourier_modes
     self%onsager_bins = onsager_bins
     if (trim(self%inertia_model) == 'thin_rod') self%inertia = self%m*self%length**2/12.0_dp
-  contains
-    subroutine group(name, required)
-      character(len=*), intent(in) :: name
-      logical, intent(in) :: required
-      if (ios > 0) then
-        call set_error(st, exit_bad_input, trim(path)//': &'//name//': cannot read group: '// &
-             trim(iom))
-      else if (ios < 0 .and. required) then
-        call set_error(st, exit_bad_input, trim(path)//': missing group &'//name)
-      end if
-    end subroutine group
   end subroutine read_file
 
   subroutine validate(self, path, fourier_modes, onsager_bins, st)
@@ -392,15 +378,9 @@ contains
     integer, intent(out) :: n
     n = 0
     names = ''
-    if (self%history_every > 0) then
-      n = n + 1; names(n) = 'history.dat'
-    end if
-    if (self%histogram_every > 0) then
-      n = n + 1; names(n) = 'histograms.dat'
-    end if
-    if (self%samples_every > 0) then
-      n = n + 1; names(n) = 'samples.dat'
-    end if
+    call add_output(names, n, self%history_every > 0, 'history.dat')
+    call add_output(names, n, self%histogram_every > 0, 'histograms.dat')
+    call add_output(names, n, self%samples_every > 0, 'samples.dat')
   end subroutine output_files
 
   subroutine write_rows(self, last, st)

@@ -13,11 +13,11 @@
 module edmd_dla
   use kinds, only: dp, i8, pi
   use errors, only: status_t, set_error, exit_bad_input, exit_io, msg_len
-  use method, only: method_t, fname_len, max_out_files
+  use method, only: method_t, fname_len, max_out_files, add_output
   use tables, only: table_t, table_open, table_line, table_flush, table_close, rfmt
   use ckpt, only: ckpt_writer_t, ckpt_put
   use, intrinsic :: iso_fortran_env, only: int8
-  use scene_input, only: kind_len, check_real, check_int, check_choice, put_real, put_int, &
+  use scene_input, only: open_scene, group_status, kind_len, check_real, check_int, check_choice, put_real, put_int, &
        put_str, put_logical, int_str, real_str
   use edmd_core, only: ed_t, ed_setup, ed_place_random, ed_place_lattice, ed_velocities, &
        ed_start, ed_run_until, ed_position, ed_kinetic, ed_momentum, ed_check_overlaps, &
@@ -132,23 +132,20 @@ contains
     frame_every = self%frame_every; history_every = self%history_every
     check_every = self%check_every; checkpoint_every = self%checkpoint_every
     log_events = self%log_events
-    open(newunit=u, file=path, status='old', action='read', iostat=ios, iomsg=iom)
-    if (ios /= 0) then
-      call set_error(st, exit_io, trim(path)//': cannot open scene file: '//trim(iom))
-      return
-    end if
+    call open_scene(path, u, st)
+    if (st%code /= 0) return
     read(u, nml=scene, iostat=ios, iomsg=iom)
-    call group('scene', .false.)
+    call group_status(path, 'scene', ios, iom, .false., st)
     rewind(u); read(u, nml=box, iostat=ios, iomsg=iom)
-    call group('box', .false.)
+    call group_status(path, 'box', ios, iom, .false., st)
     rewind(u); read(u, nml=disks, iostat=ios, iomsg=iom)
-    call group('disks', .false.)
+    call group_status(path, 'disks', ios, iom, .false., st)
     rewind(u); read(u, nml=aggregate, iostat=ios, iomsg=iom)
-    call group('aggregate', .false.)
+    call group_status(path, 'aggregate', ios, iom, .false., st)
     rewind(u); read(u, nml=run, iostat=ios, iomsg=iom)
-    call group('run', .false.)
+    call group_status(path, 'run', ios, iom, .false., st)
     rewind(u); read(u, nml=output, iostat=ios, iomsg=iom)
-    call group('output', .false.)
+    call group_status(path, 'output', ios, iom, .false., st)
     close(u)
     if (st%code /= 0) return
     self%kind = kind; self%title = title; self%lx = lx; self%ly = ly
@@ -162,17 +159,6 @@ contains
     self%frame_every = frame_every; self%history_every = history_every
     self%check_every = check_every; self%checkpoint_every = checkpoint_every
     self%log_events = log_events
-  contains
-    subroutine group(name, required)
-      character(len=*), intent(in) :: name
-      logical, intent(in) :: required
-      if (ios > 0) then
-        call set_error(st, exit_bad_input, trim(path)//': &'//name//': cannot read group: '// &
-             trim(iom))
-      else if (ios < 0 .and. required) then
-        call set_error(st, exit_bad_input, trim(path)//': missing group &'//name)
-      end if
-    end subroutine group
   end subroutine read_file
 
   subroutine validate(self, path, st)
@@ -440,16 +426,10 @@ contains
     integer, intent(out) :: n
     n = 0
     names = ''
-    if (self%frame_every > 0) call add('frames.dat')
-    if (self%history_every > 0) call add('history.dat')
-    if (self%sticking) call add('aggregate.dat')
-    if (self%log_events) call add('events.dat')
-  contains
-    subroutine add(name)
-      character(len=*), intent(in) :: name
-      n = n + 1
-      names(n) = name
-    end subroutine add
+    call add_output(names, n, self%frame_every > 0, 'frames.dat')
+    call add_output(names, n, self%history_every > 0, 'history.dat')
+    call add_output(names, n, self%sticking, 'aggregate.dat')
+    call add_output(names, n, self%log_events, 'events.dat')
   end subroutine output_files
 
   subroutine member_row(self, i, st)

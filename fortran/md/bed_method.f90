@@ -5,7 +5,7 @@
 module bed_method
   use kinds, only: dp, i8
   use errors, only: status_t, set_error, exit_ok
-  use method, only: method_t, fname_len, max_out_files
+  use method, only: method_t, fname_len, max_out_files, add_output
   use ckpt, only: ckpt_writer_t
   use scene_input, only: int_str
   use engine, only: sim_t, sim_load, sim_step, pairs_per_step
@@ -106,18 +106,14 @@ contains
     class(bed_t), intent(in) :: self
     character(len=fname_len), intent(out) :: names(max_out_files)
     integer, intent(out) :: n
-    logical :: on(4)
-    integer :: k
-    associate (sc => self%sim%sc)
-      on = [sc%piston_every > 0, sc%frame_every > 0, sc%distance_every > 0, sc%energy_every > 0]
-    end associate
     names = ''
     n = 0
-    do k = 1, 4
-      if (.not. on(k)) cycle
-      n = n + 1
-      names(n) = output_names(k)
-    end do
+    associate (sc => self%sim%sc)
+      call add_output(names, n, sc%piston_every > 0, output_names(1))
+      call add_output(names, n, sc%frame_every > 0, output_names(2))
+      call add_output(names, n, sc%distance_every > 0, output_names(3))
+      call add_output(names, n, sc%energy_every > 0, output_names(4))
+    end associate
   end subroutine output_files
 
   subroutine save_state(self, w)

@@ -14,9 +14,9 @@
 module oscillator
   use kinds, only: dp, i8
   use errors, only: status_t, set_error, exit_bad_input, exit_io, exit_numerical, msg_len
-  use method, only: method_t, fname_len, max_out_files
+  use method, only: method_t, fname_len, max_out_files, add_output
   use tables, only: table_t, table_open, table_line, table_flush, table_close, rfmt
-  use scene_input, only: kind_len, check_real, check_int, check_choice, put_real, put_int, &
+  use scene_input, only: open_scene, group_status, kind_len, check_real, check_int, check_choice, put_real, put_int, &
        put_str, int_str
   use ckpt, only: ckpt_writer_t, ckpt_put
   use, intrinsic :: iso_fortran_env, only: int8
@@ -90,17 +90,14 @@ contains
     seed = self%seed; integrator = self%integrator; dt = self%dt; t_end = self%t_end
     trajectory_every = self%trajectory_every; energy_every = self%energy_every
     checkpoint_every = self%checkpoint_every
-    open(newunit=u, file=path, status='old', action='read', iostat=ios, iomsg=iom)
-    if (ios /= 0) then
-      call set_error(st, exit_io, trim(path)//': cannot open scene file: '//trim(iom))
-      return
-    end if
+    call open_scene(path, u, st)
+    if (st%code /= 0) return
     read(u, nml=scene, iostat=ios, iomsg=iom)
-    call group('scene', .true.)
+    call group_status(path, 'scene', ios, iom, .true., st)
     rewind(u); read(u, nml=oscillator, iostat=ios, iomsg=iom)
-    call group('oscillator', .false.)
+    call group_status(path, 'oscillator', ios, iom, .false., st)
     rewind(u); read(u, nml=output, iostat=ios, iomsg=iom)
-    call group('output', .false.)
+    call group_status(path, 'output', ios, iom, .false., st)
     close(u)
     if (st%code /= 0) return
     self%kind = kind; self%title = title
@@ -108,17 +105,6 @@ contains
     self%seed = seed; self%integrator = integrator; self%dt = dt; self%t_end = t_end
     self%trajectory_every = trajectory_every; self%energy_every = energy_every
     self%checkpoint_every = checkpoint_every
-  contains
-    subroutine group(name, required)
-      character(len=*), intent(in) :: name
-      logical, intent(in) :: required
-      if (ios > 0) then
-        call set_error(st, exit_bad_input, trim(path)//': &'//name//': cannot read group: '// &
-             trim(iom))
-      else if (ios < 0 .and. required) then
-        call set_error(st, exit_bad_input, trim(path)//': missing group &'//name)
-      end if
-    end subroutine group
   end subroutine read_file
 
   subroutine validate(self, path, st)
@@ -212,12 +198,8 @@ contains
     integer, intent(out) :: n
     n = 0
     names = ''
-    if (self%trajectory_every > 0) then
-      n = n + 1; names(n) = 'trajectory.dat'
-    end if
-    if (self%energy_every > 0) then
-      n = n + 1; names(n) = 'energy.dat'
-    end if
+    call add_output(names, n, self%trajectory_every > 0, 'trajectory.dat')
+    call add_output(names, n, self%energy_every > 0, 'energy.dat')
   end subroutine output_files
 
   !> Rows due at the current step (every `every` steps, and at the last).
