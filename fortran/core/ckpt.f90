@@ -16,6 +16,7 @@ module ckpt
   use, intrinsic :: iso_fortran_env, only: int8, int32
   use kinds, only: dp, i8
   use errors, only: status_t, set_error, exit_io, exit_ok
+  use scene_input, only: printable
   use files, only: rename_into_place, file_exists, remove_file, cfile_t, cf_open, cf_write, &
        cf_seek, cf_close, sync_dir
   implicit none
@@ -269,16 +270,5 @@ contains
     close(u, iostat=ios2)
     u = -1
   end subroutine ckpt_close
-
-  pure function printable(s) result(r)
-    character(len=*), intent(in) :: s
-    character(len=len(s)) :: r
-    integer :: i, c
-    r = s
-    do i = 1, len(s)
-      c = iachar(s(i:i))
-      if (c < 32 .or. c > 126) r(i:i) = '?'
-    end do
-  end function printable
 
 end module ckpt

@@ -16,8 +16,8 @@ module files
   private
 
   public :: cfile_t, cf_open, cf_is_open, cf_write, cf_line, cf_sync, cf_close, cf_seek, &
-       os_error, sync_dir, file_exists, dir_exists, remove_file, rename_into_place, make_dir, &
-       truncate_file, file_size
+       os_error, sync_dir, file_exists, remove_file, rename_into_place, make_dir, &
+       truncate_file
 
   !> A file written through C stdio with every call checked.
   type :: cfile_t
@@ -257,20 +257,6 @@ contains
          //os_error())
   end subroutine make_dir
 
-  logical function dir_exists(path)
-    character(len=*), intent(in) :: path
-    inquire(file=trim(path)//'/.', exist=dir_exists)
-  end function dir_exists
-
-  !> Size [bytes] of a file, -1 if it does not exist.
-  function file_size(path) result(n)
-    character(len=*), intent(in) :: path
-    integer(i8) :: n
-    logical :: there
-    n = -1
-    inquire(file=trim(path), exist=there)
-    if (there) inquire(file=trim(path), size=n)
-  end function file_size
 
   !> Cut a file back to `length` bytes (drops rows written after a
   !> checkpoint). A file shorter than the checkpoint recorded is refused:

@@ -9,7 +9,8 @@ module scene_input
   implicit none
   private
 
-  public :: kind_len, read_kind, read_text, max_scene_bytes, open_scene, group_status, check_real, check_int, check_choice, &
+  public :: kind_len, read_kind, read_text, max_scene_bytes, open_scene, group_status, &
+       printable, lower_case, check_real, check_int, check_choice, &
        put_real, put_int, put_str, put_logical, quoted, real_str, int_str
 
   integer, parameter :: kind_len = 32
@@ -165,6 +166,18 @@ contains
     character(len=1), intent(in) :: c
     is_letter = (c >= 'a' .and. c <= 'z') .or. (c >= 'A' .and. c <= 'Z')
   end function is_letter
+
+  !> Control and non-ASCII bytes shown as '?', so a message is one clean line.
+  pure function printable(s) result(r)
+    character(len=*), intent(in) :: s
+    character(len=len(s)) :: r
+    integer :: i, c
+    r = s
+    do i = 1, len(s)
+      c = iachar(s(i:i))
+      if (c < 32 .or. c > 126) r(i:i) = '?'
+    end do
+  end function printable
 
   pure function lower_case(s) result(r)
     character(len=*), intent(in) :: s

@@ -4,13 +4,12 @@
 !> failed write (full disk, I/O error) becomes an exit_io status naming the
 !> file and the system's message.
 module tables
-  use kinds, only: i8
   use errors, only: status_t, exit_ok
   use files, only: cfile_t, cf_open, cf_is_open, cf_line, cf_sync, cf_close
   implicit none
   private
 
-  public :: table_t, table_open, table_line, table_flush, table_close, table_size, rfmt
+  public :: table_t, table_open, table_line, table_flush, table_close, rfmt
 
   character(len=*), parameter :: rfmt = 'es24.16e3'   !< real format: round-trips a real64
 
@@ -51,14 +50,6 @@ contains
     type(status_t), intent(inout) :: st
     call cf_sync(t%f, st, disk=.false.)
   end subroutine table_flush
-
-  !> Bytes written to the table, its size once flushed (0 when closed).
-  function table_size(t) result(nbytes)
-    type(table_t), intent(in) :: t
-    integer(i8) :: nbytes
-    nbytes = 0
-    if (cf_is_open(t%f)) nbytes = t%f%bytes
-  end function table_size
 
   !> fflush + fsync + close, every step checked.
   subroutine table_close(t, st)

@@ -8,7 +8,7 @@ module scene
   use, intrinsic :: iso_c_binding, only: c_int, c_long
   use kinds, only: dp, i8
   use errors, only: status_t, set_error, exit_bad_input, exit_io, exit_internal, msg_len
-  use scene_input, only: read_text, max_scene_bytes
+  use scene_input, only: read_text, max_scene_bytes, printable, lower => lower_case
   implicit none
   private
 
@@ -797,27 +797,6 @@ contains
   end subroutine scene_read
 
 
-  !> Control and non-ASCII bytes shown as '?', so a message is one clean line.
-  pure function printable(s) result(r)
-    character(len=*), intent(in) :: s
-    character(len=len(s)) :: r
-    integer :: i, c
-    r = s
-    do i = 1, len(s)
-      c = iachar(s(i:i))
-      if (c < 32 .or. c > 126) r(i:i) = '?'
-    end do
-  end function printable
-
-  pure function lower(s) result(r)
-    character(len=*), intent(in) :: s
-    character(len=len(s)) :: r
-    integer :: i
-    r = s
-    do i = 1, len(s)
-      if (s(i:i) >= 'A' .and. s(i:i) <= 'Z') r(i:i) = achar(iachar(s(i:i)) + 32)
-    end do
-  end function lower
 
   !> Check every value and every consistency rule; the first violation is
   !> reported as "FILE: &group key = value: allowed range".
