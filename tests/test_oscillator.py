@@ -159,3 +159,25 @@ def test_explicit_euler_blow_up_is_a_clear_failure(tmp_path: Path) -> None:
                                   "oscillator.dt": 0.5, "oscillator.t_end": 2000.0})
     text = (tmp_path / "blow" / "trajectory.dat").read_text().lower()
     assert "nan" not in text and "infinity" not in text
+
+
+def test_overwrite_removes_the_earlier_run_of_another_kind(tmp_path: Path) -> None:
+    """--overwrite removes what the earlier run listed in .outputs (a bed's .dat files), not only
+    the files the new kind writes; without it the directory is refused."""
+    d = tmp_path / "r"
+    bed = Scene.read(ROOT / "runs" / "single_particle.nml").write(tmp_path / "b.nml")
+    p = subprocess.run([str(engine_executable()), str(bed), "--out", str(d), "--quiet",
+                        "--stop-at", "10"], capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr
+    bed_files = set((d / ".outputs").read_text().split())
+    assert bed_files - {"energy.dat"} and all((d / f).exists() for f in bed_files)
+    osc = Scene.read(SCENE).with_overrides({"oscillator.n": 2, "oscillator.t_end": 0.1})
+    path = osc.write(tmp_path / "o.nml")
+    p = subprocess.run([str(engine_executable()), str(path), "--out", str(d), "--quiet"],
+                       capture_output=True, text=True)
+    assert p.returncode == 4 and "--overwrite" in p.stderr
+    p = subprocess.run([str(engine_executable()), str(path), "--out", str(d), "--quiet",
+                        "--overwrite"], capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr
+    assert not any((d / f).exists() for f in bed_files - {"energy.dat"})
+    assert (d / ".outputs").read_text().split() == ["trajectory.dat", "energy.dat"]
