@@ -10,10 +10,11 @@
 module neighbours
   use kinds, only: dp, i8
   use parallel, only: par_min_loop
+  use state, only: state_t, state_permute
   implicit none
   private
 
-  public :: nlist_t, nlist_setup, nlist_due, nlist_bin, nlist_build
+  public :: nlist_t, nlist_setup, nlist_due, nlist_bin, nlist_build, nlist_refresh
   public :: nb_all_pairs, nb_cells, nb_verlet, nb_thesis
 
   integer, parameter :: nb_all_pairs = 0, nb_cells = 1, nb_verlet = 2, nb_thesis = 3
@@ -82,6 +83,20 @@ contains
     !$omp end parallel do
     due = d2max > lim2
   end function nlist_due
+
+  !> Before a force pass: rebuild the list when due, re-sorting the particles
+  !> by cell first (memory locality; not for 'cells', whose grid is rebuilt every step).
+  subroutine nlist_refresh(nl, s)
+    type(nlist_t), intent(inout) :: nl
+    type(state_t), intent(inout) :: s
+    if (.not. nlist_due(nl, s%n, s%x, s%y)) return
+    call nlist_bin(nl, s%n, s%x, s%y)
+    if (nl%strategy /= nb_cells) then
+      call state_permute(s, nl%cell_part)
+      call nlist_bin(nl, s%n, s%x, s%y)
+    end if
+    call nlist_build(nl, s%n, s%x, s%y)
+  end subroutine nlist_refresh
 
   pure integer function cell_index(nl, xi, yi) result(c)
     type(nlist_t), intent(in) :: nl

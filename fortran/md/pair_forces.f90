@@ -5,14 +5,35 @@
 !>
 !> Truncated strategies may shift the force (shift4 = r_c^-4) so that it
 !> vanishes continuously at r_c: f(r) = k (r^-4 - r_c^-4).
+!>
+!> The same passes (all pairs, half lists, threads) carry a second law, the
+!> truncated Lennard-Jones of seed 000 (eqs. 3-5, kind 'lj_box'): selected by
+!> the optional `law` argument (type lj_law_t); mu = 1, k_pair = 1, no r^-3 sums.
 module pair_forces
   use kinds, only: dp
   implicit none
   private
 
   public :: dipole_kernel, pair_forces_all, pair_forces_list, pair_forces_far, pair_energy_all
+  public :: lj_law_t, lj_law, lj_kernel, lj_energy
 
   integer, parameter :: mode_all = 1, mode_list = 2
+  integer, parameter :: kernel_dipole = 1, kernel_lj6 = 2, kernel_lj = 3
+
+  !> Seed 000's steric law between r_m and the cut-off R: U = 4 U0 ((2/r)^2p - (2/r)^p),
+  !> continued linearly below r_m (constant force |U'(r_m)|). Lengths in a, energies
+  !> in m g a. p is an integer (powers by multiplication; p = 6 has its own unrolled path).
+  type :: lj_law_t
+    integer :: kernel = kernel_lj
+    integer :: p = 6            !< exponent [1]
+    real(dp) :: u0 = 1          !< well depth U0 [m g a]
+    real(dp) :: rm = 1.8_dp     !< lower cut-off r_m [a]
+    real(dp) :: rm2 = 3.24_dp   !< r_m^2 [a^2]
+    real(dp) :: c4p = 24        !< 4 p U0 [m g a]
+    real(dp) :: fcore = 0       !< |U'(r_m)| [m g]
+    real(dp) :: ucore = 0       !< U_LJ(r_m) [m g a]
+    real(dp) :: rc2 = 25        !< R^2: zero beyond the cut-off R, for every strategy [a^2]
+  end type lj_law_t
 
   !> Spill buffers of threaded_pass (n, 3, threads): reactions a thread puts on
   !> rows owned by later threads. Kept between passes and all zero between them.
@@ -33,9 +54,102 @@ contains
     s5 = s3*r2inv - shift4*rinv
   end subroutine dipole_kernel
 
+  !> The law with exponent p, depth u0 [m g a], lower cut-off rm [a] (rm > 0) and
+  !> cut-off rc [a] (plain truncation, as eq. 3: force and energy jump at R).
+  pure function lj_law(p, u0, rm, rc) result(l)
+    integer, intent(in) :: p
+    real(dp), intent(in) :: u0, rm, rc
+    type(lj_law_t) :: l
+    real(dp) :: q
+    l%p = p
+    l%kernel = merge(kernel_lj6, kernel_lj, p == 6)
+    l%u0 = u0
+    l%rm = rm
+    l%rm2 = rm*rm
+    l%c4p = 4.0_dp*real(p, dp)*u0
+    q = (2.0_dp/rm)**p
+    l%fcore = l%c4p/rm*(2*q*q - q)     ! -U'(r_m), eq. (9)
+    l%ucore = 4.0_dp*u0*(q*q - q)
+    l%rc2 = rc*rc
+  end function lj_law
+
+  !> Force factor s (force on i = s (r_i - r_j)) at squared distance r2 [a^2]:
+  !> 4 p U0 r^-2 (2 q^2 - q), q = (2/r)^p, above r_m; |U'(r_m)|/r at and below r_m.
+  !> No non-integer powers: q from (4/r^2) by multiplication (one sqrt for odd p and for
+  !> the core branch).
+  pure elemental subroutine lj_kernel(l, r2, s)
+    type(lj_law_t), intent(in) :: l
+    real(dp), intent(in) :: r2
+    real(dp), intent(out) :: s
+    real(dp) :: r2inv, w, q, rinv
+    r2inv = 1.0_dp/r2
+    rinv = sqrt(r2inv)
+    w = 4.0_dp*r2inv
+    if (l%kernel == kernel_lj6) then
+      q = w*w*w
+    else
+      q = w**(l%p/2)
+      if (mod(l%p, 2) == 1) q = q*2.0_dp*rinv
+    end if
+    s = merge(l%c4p*r2inv*(2*q*q - q), l%fcore*rinv, r2 > l%rm2)
+    s = merge(s, 0.0_dp, r2 < l%rc2)
+  end subroutine lj_kernel
+
+  !> The law's kernel or the dipole's (s3 = 0 for Lennard-Jones).
+  pure elemental subroutine pair_kernel(kernel, l, r2, shift4, s, s3)
+    integer, intent(in) :: kernel
+    type(lj_law_t), intent(in) :: l
+    real(dp), intent(in) :: r2, shift4
+    real(dp), intent(out) :: s, s3
+    if (kernel == kernel_dipole) then
+      call dipole_kernel(r2, shift4, s, s3)
+    else
+      call lj_kernel(l, r2, s)
+      s3 = 0
+    end if
+  end subroutine pair_kernel
+
+  !> Potential energy of the law [m g a] (pairs within R): over the pairs of a half list
+  !> (start, nbr) when given (its radius >= R), else every pair.
+  function lj_energy(n, x, y, l, start, nbr) result(e)
+    integer, intent(in) :: n
+    real(dp), intent(in) :: x(n), y(n)
+    type(lj_law_t), intent(in) :: l
+    integer, intent(in), optional :: start(:), nbr(:)
+    real(dp) :: e
+    integer :: i, j, k
+    e = 0
+    do i = 1, n - 1
+      if (present(start)) then
+        do k = start(i), start(i + 1) - 1
+          e = e + u_pair(i, nbr(k))
+        end do
+      else
+        do j = i + 1, n
+          e = e + u_pair(i, j)
+        end do
+      end if
+    end do
+  contains
+    real(dp) function u_pair(a, b) result(u)
+      integer, intent(in) :: a, b
+      real(dp) :: r2, r, q
+      r2 = (x(a) - x(b))**2 + (y(a) - y(b))**2
+      u = 0
+      if (r2 >= l%rc2) return
+      r = sqrt(r2)
+      if (r2 > l%rm2) then
+        q = (2.0_dp/r)**l%p
+        u = 4.0_dp*l%u0*(q*q - q)
+      else
+        u = l%ucore - l%fcore*(r - l%rm)
+      end if
+    end function u_pair
+  end function lj_energy
+
   !> O(N^2) reference: every pair once, Newton's third law applied exactly.
   !> Adds to fx, fy (n) [m1 g]; if with_r3, adds to s3 (n).
-  subroutine pair_forces_all(n, x, y, mu, wsin, k_pair, with_r3, fx, fy, s3, r2min)
+  subroutine pair_forces_all(n, x, y, mu, wsin, k_pair, with_r3, fx, fy, s3, r2min, law)
     integer, intent(in) :: n
     real(dp), intent(in) :: x(n), y(n)       !< positions [D1]
     real(dp), intent(in) :: mu(n)            !< relative moments mu_i/mu1
@@ -45,16 +159,17 @@ contains
     real(dp), intent(inout) :: fx(n), fy(n)  !< forces [m1 g]
     real(dp), intent(inout) :: s3(n)         !< sum_j wsin_j r_ij^-3
     real(dp), intent(out) :: r2min           !< smallest squared pair distance [D1^2]
+    type(lj_law_t), intent(in), optional :: law   !< Lennard-Jones instead of the dipole law
     integer :: dummy(1)
-    call threaded_pass(mode_all, n, x, y, mu, wsin, k_pair, 0.0_dp, 0.0_dp, 0.0_dp, .false., &
-         with_r3, dummy, dummy, fx, fy, s3, r2min)
+    call threaded_pass(mode_all, kernel_of(law), law_of(law), n, x, y, mu, wsin, k_pair, &
+         0.0_dp, 0.0_dp, 0.0_dp, .false., with_r3, dummy, dummy, fx, fy, s3, r2min)
   end subroutine pair_forces_all
 
   !> Half neighbour list (pairs i < j stored once, CSR: the neighbours of i
   !> are nbr(start(i) : start(i+1)-1)). Pairs at r >= r_c are skipped when
   !> check is set (the thesis variant r_c = r_v uses every listed pair).
   subroutine pair_forces_list(n, x, y, mu, wsin, k_pair, rc2, shift4, check, with_r3, &
-       start, nbr, fx, fy, s3, r2min)
+       start, nbr, fx, fy, s3, r2min, law)
     integer, intent(in) :: n
     real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair
     real(dp), intent(in) :: rc2       !< squared cut-off [D1^2]
@@ -63,9 +178,22 @@ contains
     integer, intent(in) :: start(n + 1), nbr(:)
     real(dp), intent(inout) :: fx(n), fy(n), s3(n)
     real(dp), intent(out) :: r2min    !< smallest squared distance among listed pairs
-    call threaded_pass(mode_list, n, x, y, mu, wsin, k_pair, 0.0_dp, rc2, shift4, check, &
-         with_r3, start, nbr, fx, fy, s3, r2min)
+    type(lj_law_t), intent(in), optional :: law   !< Lennard-Jones instead of the dipole law
+    call threaded_pass(mode_list, kernel_of(law), law_of(law), n, x, y, mu, wsin, k_pair, &
+         0.0_dp, rc2, shift4, check, with_r3, start, nbr, fx, fy, s3, r2min)
   end subroutine pair_forces_list
+
+  pure integer function kernel_of(law) result(k)
+    type(lj_law_t), intent(in), optional :: law
+    k = kernel_dipole
+    if (present(law)) k = law%kernel
+  end function kernel_of
+
+  pure function law_of(law) result(l)
+    type(lj_law_t), intent(in), optional :: law
+    type(lj_law_t) :: l
+    if (present(law)) l = law
+  end function law_of
 
   !> The far field: every pair at r >= r_c, O(N^2), for the frozen tail
   !> correction (recomputed every tail_every steps). Overwrites fx, fy, s3.
@@ -77,17 +205,18 @@ contains
     integer :: dummy(1)
     real(dp) :: r2min
     fx = 0; fy = 0; s3 = 0
-    call threaded_pass(mode_all, n, x, y, mu, wsin, k_pair, rc2, 0.0_dp, 0.0_dp, .false., &
-         with_r3, dummy, dummy, fx, fy, s3, r2min)
+    call threaded_pass(mode_all, kernel_dipole, lj_law_t(), n, x, y, mu, wsin, k_pair, rc2, &
+         0.0_dp, 0.0_dp, .false., with_r3, dummy, dummy, fx, fy, s3, r2min)
   end subroutine pair_forces_far
 
   !> Rows i_lo..i_hi of the all-pairs triangle; pairs with r^2 < r2_min are
   !> masked out (0 for the full sum, r_c^2 for the far field). Reactions on
   !> j <= hi_direct go to fx, fy, s3, those on j > hi_direct to the spill
   !> arrays sx, sy, ss (another thread owns those rows; see threaded_pass).
-  subroutine rows_all(i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, r2_min, with_r3, &
-       fx, fy, s3, sx, sy, ss, r2low)
-    integer, intent(in) :: i_lo, i_hi, hi_direct, n
+  subroutine rows_all(kernel, l, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, r2_min, &
+       with_r3, fx, fy, s3, sx, sy, ss, r2low)
+    integer, intent(in) :: kernel, i_lo, i_hi, hi_direct, n
+    type(lj_law_t), intent(in) :: l
     real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair, r2_min
     logical, intent(in) :: with_r3
     real(dp), intent(inout) :: fx(n), fy(n), s3(n)
@@ -97,10 +226,10 @@ contains
     real(dp) :: fxi, fyi, s3i
     do i = i_lo, i_hi
       fxi = 0; fyi = 0; s3i = 0
-      call row_segment(i, i + 1, min(n, hi_direct), n, x, y, mu, wsin, k_pair, r2_min, &
-           with_r3, fx, fy, s3, fxi, fyi, s3i, r2low)
-      if (hi_direct < n) call row_segment(i, max(i + 1, hi_direct + 1), n, n, x, y, mu, &
-           wsin, k_pair, r2_min, with_r3, sx, sy, ss, fxi, fyi, s3i, r2low)
+      call row_segment(kernel, l, i, i + 1, min(n, hi_direct), n, x, y, mu, wsin, k_pair, &
+           r2_min, with_r3, fx, fy, s3, fxi, fyi, s3i, r2low)
+      if (hi_direct < n) call row_segment(kernel, l, i, max(i + 1, hi_direct + 1), n, n, x, &
+           y, mu, wsin, k_pair, r2_min, with_r3, sx, sy, ss, fxi, fyi, s3i, r2low)
       fx(i) = fx(i) + fxi
       fy(i) = fy(i) + fyi
       if (with_r3) s3(i) = s3(i) + s3i
@@ -109,9 +238,10 @@ contains
 
   !> Pairs (i, j), j = j_lo..j_hi, of the triangle (contiguous j: vectorised).
   !> The action on i is added to fxi, fyi, s3i, the reaction to ax, ay, a3(j).
-  subroutine row_segment(i, j_lo, j_hi, n, x, y, mu, wsin, k_pair, r2_min, with_r3, &
-       ax, ay, a3, fxi, fyi, s3i, r2low)
-    integer, intent(in) :: i, j_lo, j_hi, n
+  subroutine row_segment(kernel, l, i, j_lo, j_hi, n, x, y, mu, wsin, k_pair, r2_min, &
+       with_r3, ax, ay, a3, fxi, fyi, s3i, r2low)
+    integer, intent(in) :: kernel, i, j_lo, j_hi, n
+    type(lj_law_t), intent(in) :: l
     real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair, r2_min
     logical, intent(in) :: with_r3
     real(dp), intent(inout) :: ax(*), ay(*), a3(*)
@@ -131,7 +261,7 @@ contains
       r2 = dx*dx + dy*dy
       low = min(low, r2)
       keep = merge(1.0_dp, 0.0_dp, r2 >= r2_min)
-      call dipole_kernel(r2, 0.0_dp, s5, r3)
+      call pair_kernel(kernel, l, r2, 0.0_dp, s5, r3)
       c = keep*ci*mu(j)*s5
       gx = gx + c*dx
       gy = gy + c*dy
@@ -152,9 +282,10 @@ contains
   !> Rows i_lo..i_hi of a half neighbour list. Two passes per chunk: gather
   !> and evaluate (vectorisable), then accumulate on i and scatter on j
   !> (reactions on j > hi_direct to the spill arrays, as in rows_all).
-  subroutine rows_list(i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, shift4, check, &
-       with_r3, start, nbr, fx, fy, s3, sx, sy, ss, r2low)
-    integer, intent(in) :: i_lo, i_hi, hi_direct, n
+  subroutine rows_list(kernel, l, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, &
+       shift4, check, with_r3, start, nbr, fx, fy, s3, sx, sy, ss, r2low)
+    integer, intent(in) :: kernel, i_lo, i_hi, hi_direct, n
+    type(lj_law_t), intent(in) :: l
     real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair, rc2, shift4
     logical, intent(in) :: check, with_r3
     integer, intent(in) :: start(n + 1), nbr(:)
@@ -182,7 +313,7 @@ contains
           low = min(low, r2)
           keep = 1
           if (check) keep = merge(1.0_dp, 0.0_dp, r2 < rc2)
-          call dipole_kernel(r2, shift4, cs(m), r3s(m))
+          call pair_kernel(kernel, l, r2, shift4, cs(m), r3s(m))
           cs(m) = keep*ci*mu(j)*cs(m)
           r3s(m) = keep*r3s(m)
         end do
@@ -236,10 +367,11 @@ contains
   !> following blocks) into a persistent spill buffer. After a barrier the
   !> spills are added in thread order and reset to zero. The result does not
   !> depend on scheduling, and on the thread count only through round-off.
-  subroutine threaded_pass(mode, n, x, y, mu, wsin, k_pair, r2_min, rc2, shift4, check, &
-       with_r3, start, nbr, fx, fy, s3, r2low)
+  subroutine threaded_pass(mode, kernel, l, n, x, y, mu, wsin, k_pair, r2_min, rc2, shift4, &
+       check, with_r3, start, nbr, fx, fy, s3, r2low)
     !$ use omp_lib, only: omp_get_max_threads, omp_get_thread_num
-    integer, intent(in) :: mode, n
+    integer, intent(in) :: mode, kernel, n
+    type(lj_law_t), intent(in) :: l
     real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair, r2_min, rc2, shift4
     logical, intent(in) :: check, with_r3
     integer, intent(in) :: start(:), nbr(:)
@@ -304,11 +436,11 @@ contains
       integer, intent(in) :: i_lo, i_hi, hi_direct
       real(dp), intent(inout) :: ax(n), ay(n), a3(n), bx(*), by(*), b3(*), lw
       if (mode == mode_all) then
-        call rows_all(i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, r2_min, with_r3, &
-             ax, ay, a3, bx, by, b3, lw)
+        call rows_all(kernel, l, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, r2_min, &
+             with_r3, ax, ay, a3, bx, by, b3, lw)
       else
-        call rows_list(i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, shift4, check, &
-             with_r3, start, nbr, ax, ay, a3, bx, by, b3, lw)
+        call rows_list(kernel, l, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, &
+             shift4, check, with_r3, start, nbr, ax, ay, a3, bx, by, b3, lw)
       end if
     end subroutine rows
     !> Last row of the first k shares (0 for k = 0, n for k = nt).
