@@ -95,20 +95,6 @@ contains
     s = merge(s, 0.0_dp, r2 < l%rc2)
   end subroutine lj_kernel
 
-  !> The law's kernel or the dipole's (s3 = 0 for Lennard-Jones).
-  pure elemental subroutine pair_kernel(kernel, l, r2, shift4, s, s3)
-    integer, intent(in) :: kernel
-    type(lj_law_t), intent(in) :: l
-    real(dp), intent(in) :: r2, shift4
-    real(dp), intent(out) :: s, s3
-    if (kernel == kernel_dipole) then
-      call dipole_kernel(r2, shift4, s, s3)
-    else
-      call lj_kernel(l, r2, s)
-      s3 = 0
-    end if
-  end subroutine pair_kernel
-
   !> Potential energy of the law [m g a] (pairs within R): over the pairs of a half list
   !> (start, nbr) when given (its radius >= R), else every pair.
   function lj_energy(n, x, y, l, start, nbr) result(e)
@@ -238,6 +224,7 @@ contains
 
   !> Pairs (i, j), j = j_lo..j_hi, of the triangle (contiguous j: vectorised).
   !> The action on i is added to fxi, fyi, s3i, the reaction to ax, ay, a3(j).
+  !> One fused loop per law (the law chosen outside it); r^-3 sums for the dipole only.
   subroutine row_segment(kernel, l, i, j_lo, j_hi, n, x, y, mu, wsin, k_pair, r2_min, &
        with_r3, ax, ay, a3, fxi, fyi, s3i, r2low)
     integer, intent(in) :: kernel, i, j_lo, j_hi, n
@@ -255,24 +242,38 @@ contains
     xi = x(i); yi = y(i)
     ci = k_pair*mu(i)
     wi = wsin(i)
-    do j = j_lo, j_hi
-      dx = xi - x(j)
-      dy = yi - y(j)
-      r2 = dx*dx + dy*dy
-      low = min(low, r2)
-      keep = merge(1.0_dp, 0.0_dp, r2 >= r2_min)
-      call pair_kernel(kernel, l, r2, 0.0_dp, s5, r3)
-      c = keep*ci*mu(j)*s5
-      gx = gx + c*dx
-      gy = gy + c*dy
-      ax(j) = ax(j) - c*dx
-      ay(j) = ay(j) - c*dy
-      if (with_r3) then
-        r3 = keep*r3
-        g3 = g3 + wsin(j)*r3
-        a3(j) = a3(j) + wi*r3
-      end if
-    end do
+    if (kernel == kernel_dipole) then
+      do j = j_lo, j_hi
+        dx = xi - x(j)
+        dy = yi - y(j)
+        r2 = dx*dx + dy*dy
+        low = min(low, r2)
+        keep = merge(1.0_dp, 0.0_dp, r2 >= r2_min)
+        call dipole_kernel(r2, 0.0_dp, s5, r3)
+        c = keep*ci*mu(j)*s5
+        gx = gx + c*dx
+        gy = gy + c*dy
+        ax(j) = ax(j) - c*dx
+        ay(j) = ay(j) - c*dy
+        if (with_r3) then
+          r3 = keep*r3
+          g3 = g3 + wsin(j)*r3
+          a3(j) = a3(j) + wi*r3
+        end if
+      end do
+    else
+      do j = j_lo, j_hi
+        dx = xi - x(j)
+        dy = yi - y(j)
+        r2 = dx*dx + dy*dy
+        low = min(low, r2)
+        call lj_kernel(l, r2, c)
+        gx = gx + c*dx
+        gy = gy + c*dy
+        ax(j) = ax(j) - c*dx
+        ay(j) = ay(j) - c*dy
+      end do
+    end if
     fxi = fxi + gx
     fyi = fyi + gy
     s3i = s3i + g3
@@ -305,18 +306,30 @@ contains
       fxi = 0; fyi = 0; s3i = 0
       do k0 = start(i), start(i + 1) - 1, chunk
         nk = min(chunk, start(i + 1) - k0)
-        do m = 1, nk
-          j = nbr(k0 + m - 1)
-          dxs(m) = xi - x(j)
-          dys(m) = yi - y(j)
-          r2 = dxs(m)*dxs(m) + dys(m)*dys(m)
-          low = min(low, r2)
-          keep = 1
-          if (check) keep = merge(1.0_dp, 0.0_dp, r2 < rc2)
-          call pair_kernel(kernel, l, r2, shift4, cs(m), r3s(m))
-          cs(m) = keep*ci*mu(j)*cs(m)
-          r3s(m) = keep*r3s(m)
-        end do
+        if (kernel == kernel_dipole) then
+          do m = 1, nk
+            j = nbr(k0 + m - 1)
+            dxs(m) = xi - x(j)
+            dys(m) = yi - y(j)
+            r2 = dxs(m)*dxs(m) + dys(m)*dys(m)
+            low = min(low, r2)
+            keep = 1
+            if (check) keep = merge(1.0_dp, 0.0_dp, r2 < rc2)
+            call dipole_kernel(r2, shift4, cs(m), r3s(m))
+            cs(m) = keep*ci*mu(j)*cs(m)
+            r3s(m) = keep*r3s(m)
+          end do
+        else                 ! Lennard-Jones: zero beyond R by the law itself
+          do m = 1, nk
+            j = nbr(k0 + m - 1)
+            dxs(m) = xi - x(j)
+            dys(m) = yi - y(j)
+            r2 = dxs(m)*dxs(m) + dys(m)*dys(m)
+            low = min(low, r2)
+            call lj_kernel(l, r2, cs(m))
+            r3s(m) = 0
+          end do
+        end if
         direct = hi_direct >= n
         if (.not. direct) direct = maxval(nbr(k0:k0 + nk - 1)) <= hi_direct
         if (direct) then   ! the usual case: every j is ours
