@@ -17,7 +17,8 @@ module lj_box
        check_choice, put_real, put_int, put_str, int_str, real_str
   use ckpt, only: ckpt_writer_t, ckpt_put, file_crc64
   use state, only: state_t, state_allocate
-  use neighbours, only: nlist_t, nlist_setup, nlist_refresh, nb_all_pairs, nb_cells, nb_verlet
+  use neighbours, only: nlist_t, nlist_setup, nlist_refresh, nlist_owners, nb_all_pairs, &
+       nb_cells, nb_verlet
   use pair_forces, only: lj_law_t, lj_law, pair_forces_all, pair_forces_list, lj_energy
   use fields, only: field_t, field_add, field_potential, field_has_potential, &
        field_read_table, field_shapes, field_modulations
@@ -340,8 +341,11 @@ contains
     end select
     call init_threads()
     call state_allocate(self%s, int(self%n))
-    if (self%steric_on .and. self%strategy /= nb_all_pairs) call nlist_setup(self%nl, &
-         self%strategy, self%r_cut, self%skin, self%l, self%l, int(self%n))
+    if (self%steric_on .and. self%strategy /= nb_all_pairs) then
+      call nlist_setup(self%nl, self%strategy, self%r_cut, self%skin, self%l, self%l, &
+           int(self%n))
+      self%nl%with_owner = .true.
+    end if
   end subroutine build
 
   !> Seeded positions (random sequential addition at min_distance, or a square lattice)
@@ -473,7 +477,7 @@ contains
           call nlist_refresh(nl, s)
           call pair_forces_list(s%n, s%x, s%y, s%mu, s%wsin, 1.0_dp, self%r_cut**2, &
                0.0_dp, .true., no_r3, nl%start, nl%nbr, s%fx, s%fy, s%s3, self%r2min, &
-               law=self%lj)
+               law=self%lj, own=nl%own)
           nl%evaluated = nl%evaluated + nl%pairs
         end if
       end if
@@ -710,6 +714,7 @@ contains
     integer(i8) :: crc
     call checkpoint_restore(u, self%s, self%nl, self%none, st)
     if (st%code /= 0) return
+    if (self%nl%valid) call nlist_owners(self%nl, self%s%n)
     read(u, iostat=ios) self%wall_hits, crc
     if (ios /= 0 .or. self%s%step < 0 .or. self%s%step > self%steps) then
       call set_error(st, exit_io, 'checkpoint: payload does not match the scene')

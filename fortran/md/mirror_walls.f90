@@ -28,6 +28,7 @@ contains
     real(dp) :: sg
     sg = sqrt(gamma)
     escaped = 0
+    if (all_inside(n, x, y, lo, hi)) return   ! the usual step: one vectorised pass
     do i = 1, n
       if (x(i) < lo .or. x(i) > hi) call hit(x(i), ux(i), uy(i))
       if (y(i) < lo .or. y(i) > hi) call hit(y(i), uy(i), ux(i))
@@ -48,5 +49,17 @@ contains
       hits = hits + 1
     end subroutine hit
   end subroutine mirror_reflect
+
+  !> Whether every centre is inside [lo, hi]^2 (false for NaN).
+  logical function all_inside(n, x, y, lo, hi) result(ok)
+    integer, intent(in) :: n
+    real(dp), intent(in) :: x(n), y(n), lo, hi
+    integer :: i, out
+    out = 0
+    do i = 1, n
+      out = out + merge(0, 1, x(i) >= lo .and. x(i) <= hi .and. y(i) >= lo .and. y(i) <= hi)
+    end do
+    ok = out == 0
+  end function all_inside
 
 end module mirror_walls

@@ -74,26 +74,59 @@ contains
   end function lj_law
 
   !> Force factor s (force on i = s (r_i - r_j)) at squared distance r2 [a^2]:
-  !> 4 p U0 r^-2 (2 q^2 - q), q = (2/r)^p, above r_m; |U'(r_m)|/r at and below r_m.
-  !> No non-integer powers: q from (4/r^2) by multiplication (one sqrt for odd p and for
-  !> the core branch).
+  !> 4 p U0 r^-2 (2 q^2 - q), q = (2/r)^p, above r_m; |U'(r_m)|/r at and below r_m; 0 at
+  !> and beyond R. No non-integer powers: q from w = 4/r^2 by multiplication (one sqrt for
+  !> the core branch and odd p). lj6_kernel is the same for p = 6, unrolled (vectorises).
   pure elemental subroutine lj_kernel(l, r2, s)
     type(lj_law_t), intent(in) :: l
     real(dp), intent(in) :: r2
     real(dp), intent(out) :: s
-    real(dp) :: r2inv, w, q, rinv
-    r2inv = 1.0_dp/r2
-    rinv = sqrt(r2inv)
-    w = 4.0_dp*r2inv
-    if (l%kernel == kernel_lj6) then
-      q = w*w*w
-    else
-      q = w**(l%p/2)
-      if (mod(l%p, 2) == 1) q = q*2.0_dp*rinv
-    end if
-    s = merge(l%c4p*r2inv*(2*q*q - q), l%fcore*rinv, r2 > l%rm2)
-    s = merge(s, 0.0_dp, r2 < l%rc2)
+    real(dp) :: r2inv, rinv, q
+    real(dp) :: s_lj, s_core, r2c
+    r2c = max(r2, l%rm2)            ! the power law where it applies (finite otherwise)
+    r2inv = 1.0_dp/r2c
+    q = (4.0_dp*r2inv)**(l%p/2)
+    if (mod(l%p, 2) == 1) q = q*2.0_dp*sqrt(r2inv)
+    s_lj = l%c4p*r2inv*(2*q*q - q)
+    rinv = sqrt(1.0_dp/r2)
+    s_core = l%fcore*rinv
+    s = merge(s_lj, s_core, r2 > l%rm2)*merge(1.0_dp, 0.0_dp, r2 < l%rc2)
   end subroutine lj_kernel
+
+  pure elemental subroutine lj6_kernel(c4p, fcore, rm2, rc2, r2, s)
+    real(dp), intent(in) :: c4p, fcore, rm2, rc2, r2
+    real(dp), intent(out) :: s
+    real(dp) :: r2inv, w, q, s_lj, s_core, t, c
+    ! both branches computed (the power law at max(r2, r_m^2): finite however close the
+    ! pair), then blended with exact 0/1 weights: no branch in the loop (vectorises)
+    w = 4.0_dp/max(r2, rm2)
+    q = w*w*w
+    s_lj = 0.25_dp*c4p*w*(2*q*q - q)
+    r2inv = 1.0_dp/r2
+    s_core = fcore*sqrt(r2inv)
+    t = merge(1.0_dp, 0.0_dp, r2 > rm2)
+    c = merge(1.0_dp, 0.0_dp, r2 < rc2)
+    s = (t*s_lj + (1 - t)*s_core)*c
+  end subroutine lj6_kernel
+
+  !> The Lennard-Jones kernel of the law over a chunk of nk squared distances (the law's
+  !> numbers copied to locals first: the loop then vectorises).
+  subroutine lj_chunk(l, nk, r2s, cs)
+    type(lj_law_t), intent(in) :: l
+    integer, intent(in) :: nk
+    real(dp), intent(in) :: r2s(nk)
+    real(dp), intent(out) :: cs(nk)
+    real(dp) :: c4p, fcore, rm2, rc2
+    integer :: m
+    if (l%kernel == kernel_lj6) then
+      c4p = l%c4p; fcore = l%fcore; rm2 = l%rm2; rc2 = l%rc2
+      do m = 1, nk
+        call lj6_kernel(c4p, fcore, rm2, rc2, r2s(m), cs(m))
+      end do
+    else
+      call lj_kernel(l, r2s, cs)
+    end if
+  end subroutine lj_chunk
 
   !> Potential energy of the law [m g a] (pairs within R): over the pairs of a half list
   !> (start, nbr) when given (its radius >= R), else every pair.
@@ -155,7 +188,7 @@ contains
   !> are nbr(start(i) : start(i+1)-1)). Pairs at r >= r_c are skipped when
   !> check is set (the thesis variant r_c = r_v uses every listed pair).
   subroutine pair_forces_list(n, x, y, mu, wsin, k_pair, rc2, shift4, check, with_r3, &
-       start, nbr, fx, fy, s3, r2min, law)
+       start, nbr, fx, fy, s3, r2min, law, own)
     integer, intent(in) :: n
     real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair
     real(dp), intent(in) :: rc2       !< squared cut-off [D1^2]
@@ -165,8 +198,9 @@ contains
     real(dp), intent(inout) :: fx(n), fy(n), s3(n)
     real(dp), intent(out) :: r2min    !< smallest squared distance among listed pairs
     type(lj_law_t), intent(in), optional :: law   !< Lennard-Jones instead of the dipole law
+    integer, intent(in), optional :: own(:)      !< with law: the row of each pair (nlist own)
     call threaded_pass(mode_list, kernel_of(law), law_of(law), n, x, y, mu, wsin, k_pair, &
-         0.0_dp, rc2, shift4, check, with_r3, start, nbr, fx, fy, s3, r2min)
+         0.0_dp, rc2, shift4, check, with_r3, start, nbr, fx, fy, s3, r2min, own)
   end subroutine pair_forces_list
 
   pure integer function kernel_of(law) result(k)
@@ -233,8 +267,10 @@ contains
     logical, intent(in) :: with_r3
     real(dp), intent(inout) :: ax(*), ay(*), a3(*)
     real(dp), intent(inout) :: fxi, fyi, s3i, r2low
-    integer :: j
+    integer, parameter :: chunk = 256
+    integer :: j, j0, m, nk
     real(dp) :: xi, yi, ci, wi, dx, dy, r2, s5, r3, c, keep, low, gx, gy, g3
+    real(dp) :: dxs(chunk), dys(chunk), r2s(chunk), cs(chunk)
     ! accumulate in locals: dummy arguments updated in the inner loop may
     ! alias the force arrays (no vectorisation) and false-share between threads
     low = r2low
@@ -261,17 +297,23 @@ contains
           a3(j) = a3(j) + wi*r3
         end if
       end do
-    else
-      do j = j_lo, j_hi
-        dx = xi - x(j)
-        dy = yi - y(j)
-        r2 = dx*dx + dy*dy
-        low = min(low, r2)
-        call lj_kernel(l, r2, c)
-        gx = gx + c*dx
-        gy = gy + c*dy
-        ax(j) = ax(j) - c*dx
-        ay(j) = ay(j) - c*dy
+    else                     ! Lennard-Jones in chunks: distances, the law's kernel, sums
+      do j0 = j_lo, j_hi, chunk
+        nk = min(chunk, j_hi - j0 + 1)
+        do m = 1, nk
+          dxs(m) = xi - x(j0 + m - 1)
+          dys(m) = yi - y(j0 + m - 1)
+          r2s(m) = dxs(m)*dxs(m) + dys(m)*dys(m)
+          low = min(low, r2s(m))
+        end do
+        call lj_chunk(l, nk, r2s, cs)
+        do m = 1, nk
+          j = j0 + m - 1
+          gx = gx + cs(m)*dxs(m)
+          gy = gy + cs(m)*dys(m)
+          ax(j) = ax(j) - cs(m)*dxs(m)
+          ay(j) = ay(j) - cs(m)*dys(m)
+        end do
       end do
     end if
     fxi = fxi + gx
@@ -283,10 +325,9 @@ contains
   !> Rows i_lo..i_hi of a half neighbour list. Two passes per chunk: gather
   !> and evaluate (vectorisable), then accumulate on i and scatter on j
   !> (reactions on j > hi_direct to the spill arrays, as in rows_all).
-  subroutine rows_list(kernel, l, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, &
+  subroutine rows_list(i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, &
        shift4, check, with_r3, start, nbr, fx, fy, s3, sx, sy, ss, r2low)
-    integer, intent(in) :: kernel, i_lo, i_hi, hi_direct, n
-    type(lj_law_t), intent(in) :: l
+    integer, intent(in) :: i_lo, i_hi, hi_direct, n
     real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair, rc2, shift4
     logical, intent(in) :: check, with_r3
     integer, intent(in) :: start(n + 1), nbr(:)
@@ -306,30 +347,18 @@ contains
       fxi = 0; fyi = 0; s3i = 0
       do k0 = start(i), start(i + 1) - 1, chunk
         nk = min(chunk, start(i + 1) - k0)
-        if (kernel == kernel_dipole) then
-          do m = 1, nk
-            j = nbr(k0 + m - 1)
-            dxs(m) = xi - x(j)
-            dys(m) = yi - y(j)
-            r2 = dxs(m)*dxs(m) + dys(m)*dys(m)
-            low = min(low, r2)
-            keep = 1
-            if (check) keep = merge(1.0_dp, 0.0_dp, r2 < rc2)
-            call dipole_kernel(r2, shift4, cs(m), r3s(m))
-            cs(m) = keep*ci*mu(j)*cs(m)
-            r3s(m) = keep*r3s(m)
-          end do
-        else                 ! Lennard-Jones: zero beyond R by the law itself
-          do m = 1, nk
-            j = nbr(k0 + m - 1)
-            dxs(m) = xi - x(j)
-            dys(m) = yi - y(j)
-            r2 = dxs(m)*dxs(m) + dys(m)*dys(m)
-            low = min(low, r2)
-            call lj_kernel(l, r2, cs(m))
-            r3s(m) = 0
-          end do
-        end if
+        do m = 1, nk
+          j = nbr(k0 + m - 1)
+          dxs(m) = xi - x(j)
+          dys(m) = yi - y(j)
+          r2 = dxs(m)*dxs(m) + dys(m)*dys(m)
+          low = min(low, r2)
+          keep = 1
+          if (check) keep = merge(1.0_dp, 0.0_dp, r2 < rc2)
+          call dipole_kernel(r2, shift4, cs(m), r3s(m))
+          cs(m) = keep*ci*mu(j)*cs(m)
+          r3s(m) = keep*r3s(m)
+        end do
         direct = hi_direct >= n
         if (.not. direct) direct = maxval(nbr(k0:k0 + nk - 1)) <= hi_direct
         if (direct) then   ! the usual case: every j is ours
@@ -372,6 +401,54 @@ contains
     r2low = low
   end subroutine rows_list
 
+  !> Lennard-Jones over the pairs of rows i_lo..i_hi of a half list, taken as one flat
+  !> sequence (own(k) = the row of pair k): chunks of 256 pairs whatever the row lengths
+  !> (at the seed's densities a row holds ~5 pairs, too few to vectorise row by row).
+  !> Reactions on j > hi_direct go to the spill arrays sx, sy (see threaded_pass).
+  subroutine rows_pairs(l, i_lo, i_hi, hi_direct, n, x, y, start, nbr, own, fx, fy, sx, sy, &
+       r2low)
+    type(lj_law_t), intent(in) :: l
+    integer, intent(in) :: i_lo, i_hi, hi_direct, n
+    real(dp), intent(in) :: x(n), y(n)
+    integer, intent(in) :: start(n + 1), nbr(:), own(:)
+    real(dp), intent(inout) :: fx(n), fy(n), sx(*), sy(*)
+    real(dp), intent(inout) :: r2low
+    integer, parameter :: chunk = 256
+    integer :: i, j, m, k0, nk, k_hi
+    real(dp) :: low, gx, gy
+    real(dp) :: dxs(chunk), dys(chunk), r2s(chunk), cs(chunk)
+    low = r2low
+    k_hi = start(i_hi + 1) - 1
+    do k0 = start(i_lo), k_hi, chunk
+      nk = min(chunk, k_hi - k0 + 1)
+      do m = 1, nk
+        i = own(k0 + m - 1)
+        j = nbr(k0 + m - 1)
+        dxs(m) = x(i) - x(j)
+        dys(m) = y(i) - y(j)
+        r2s(m) = dxs(m)*dxs(m) + dys(m)*dys(m)
+        low = min(low, r2s(m))
+      end do
+      call lj_chunk(l, nk, r2s, cs)
+      do m = 1, nk
+        i = own(k0 + m - 1)
+        j = nbr(k0 + m - 1)
+        gx = cs(m)*dxs(m)
+        gy = cs(m)*dys(m)
+        fx(i) = fx(i) + gx
+        fy(i) = fy(i) + gy
+        if (j <= hi_direct) then
+          fx(j) = fx(j) - gx
+          fy(j) = fy(j) - gy
+        else
+          sx(j) = sx(j) - gx
+          sy(j) = sy(j) - gy
+        end if
+      end do
+    end do
+    r2low = low
+  end subroutine rows_pairs
+
   !> Run the rows on the OpenMP threads, deterministically and without
   !> per-step buffers. Thread t takes a fixed block of rows lo_t..hi_t
   !> holding ~1/nt of the pairs. Since every pair (i, j) has j > i, only
@@ -381,7 +458,7 @@ contains
   !> spills are added in thread order and reset to zero. The result does not
   !> depend on scheduling, and on the thread count only through round-off.
   subroutine threaded_pass(mode, kernel, l, n, x, y, mu, wsin, k_pair, r2_min, rc2, shift4, &
-       check, with_r3, start, nbr, fx, fy, s3, r2low)
+       check, with_r3, start, nbr, fx, fy, s3, r2low, own)
     !$ use omp_lib, only: omp_get_max_threads, omp_get_thread_num
     integer, intent(in) :: mode, kernel, n
     type(lj_law_t), intent(in) :: l
@@ -390,6 +467,7 @@ contains
     integer, intent(in) :: start(:), nbr(:)
     real(dp), intent(inout) :: fx(n), fy(n), s3(n)
     real(dp), intent(out) :: r2low
+    integer, intent(in), optional :: own(:)   !< row of each listed pair (Lennard-Jones lists)
     real(dp) :: low(64)
     integer :: nt, t, lo, hi, i, u
     integer :: bound(0:64)
@@ -451,9 +529,12 @@ contains
       if (mode == mode_all) then
         call rows_all(kernel, l, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, r2_min, &
              with_r3, ax, ay, a3, bx, by, b3, lw)
-      else
-        call rows_list(kernel, l, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, &
+      else if (kernel == kernel_dipole) then
+        call rows_list(i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, &
              shift4, check, with_r3, start, nbr, ax, ay, a3, bx, by, b3, lw)
+      else
+        call rows_pairs(l, i_lo, i_hi, hi_direct, n, x, y, start, nbr, own, ax, ay, bx, by, &
+             lw)
       end if
     end subroutine rows
     !> Last row of the first k shares (0 for k = 0, n for k = nt).
