@@ -371,3 +371,30 @@ def test_threads_deterministic_and_agree(tmp_path: Path) -> None:
     a, b = frames(outs["t1"]), frames(outs["t2a"])
     assert np.abs(a["x"] - b["x"]).max() < 1e-11
     assert np.abs(a["vy"] - b["vy"]).max() < 1e-9
+
+
+def test_field_dat_matches_the_analytic_fields(tmp_path: Path) -> None:
+    """field.dat (grid of F_ext) against the module header's formulas written in numpy:
+    a travelling wave (time-dependent: one grid per frame) and a point source with its core."""
+    out = lj_run(tmp_path, "wave", **{"field.type": "travelling_wave", "field.amplitude": 0.5,
+                                      "field.ex": 3.0, "field.ey": 4.0, "field.kx": 0.2,
+                                      "field.ky": -0.1, "field.omega": 0.7, "field.phase": 0.3,
+                                      "output.field_grid": 5, "integration.steps": 40,
+                                      "integration.dt": 0.05, "output.frame_every": 20})
+    f = io.read_dat(out / "field.dat")
+    assert sorted(f["step"].unique()) == [0, 20, 40] and len(f) == 3 * 25
+    amp = 0.5 * np.sin(0.2 * f["x"] - 0.1 * f["y"] - 0.7 * f["t"] + 0.3)
+    assert np.allclose(f["fx"], 0.6 * amp, rtol=0, atol=1e-14)
+    assert np.allclose(f["fy"], 0.8 * amp, rtol=0, atol=1e-14)
+    out = lj_run(tmp_path, "point", **{"field.type": "point", "field.amplitude": -0.3,
+                                       "field.x0": 20.0, "field.y0": 20.0, "field.power": 1.5,
+                                       "field.r0": 2.0, "field.r_core": 6.0,
+                                       "output.field_grid": 8, "integration.steps": 40,
+                                       "output.frame_every": 20})
+    f = io.read_dat(out / "field.dat")
+    assert sorted(f["step"].unique()) == [0]                 # static: written once
+    dx, dy = f["x"] - 20.0, f["y"] - 20.0
+    r = np.hypot(dx, dy)
+    mag = np.where(r >= 6.0, -0.3 * (2.0 / r) ** 1.5, -0.3 * (2.0 / 6.0) ** 1.5 * r / 6.0)
+    assert np.allclose(f["fx"], mag * dx / r, rtol=1e-13, atol=1e-15)
+    assert np.allclose(f["fy"], mag * dy / r, rtol=1e-13, atol=1e-15)

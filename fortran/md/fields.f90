@@ -21,7 +21,8 @@ module fields
   implicit none
   private
 
-  public :: field_t, field_add, field_potential, field_has_potential, field_read_table
+  public :: field_t, field_add, field_potential, field_has_potential, field_read_table, &
+       field_static
   public :: field_shapes, field_modulations
 
   integer, parameter :: fk_none = 0, fk_uniform = 1, fk_gradient = 2, fk_standing = 3, &
@@ -160,6 +161,18 @@ contains
     i = min(int(q) + 1, m - 1)
     u = q - real(i - 1, dp)
   end subroutine cell
+
+  !> Whether the field does not depend on time.
+  pure logical function field_static(f) result(yes)
+    type(field_t), intent(in) :: f
+    yes = f%modulation == md_none
+    select case (f%shape)
+    case (fk_standing, fk_travelling)
+      yes = yes .and. f%omega == 0
+    case (fk_table)
+      yes = yes .and. f%nt == 1
+    end select
+  end function field_static
 
   !> Whether F = -grad U holds for this field (see the module header).
   pure logical function field_has_potential(f) result(yes)

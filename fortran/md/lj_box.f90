@@ -21,7 +21,7 @@ module lj_box
        nb_cells, nb_verlet
   use pair_forces, only: lj_law_t, lj_law, pair_forces_all, pair_forces_list, lj_energy
   use fields, only: field_t, field_add, field_potential, field_has_potential, &
-       field_read_table, field_shapes, field_modulations
+       field_read_table, field_shapes, field_modulations, field_static
   use mirror_walls, only: mirror_reflect
   use friction, only: viscous_friction
   use integrators, only: estimate_velocity, finish_velocity, advance_step => advance
@@ -79,6 +79,7 @@ module lj_box
     integer(i8) :: steps = 10000
     ! &output (cadences in steps; 0 = file off)
     integer(i8) :: frame_every = 100, energy_every = 100
+    integer(i8) :: field_grid = 0           !< field.dat: grid points per side (0 = off)
     ! built
     type(field_t) :: fl
     type(lj_law_t) :: lj
@@ -90,7 +91,7 @@ module lj_box
     integer(i8) :: wall_hits = 0
     integer(i8) :: table_crc = 0
     real(dp) :: r2min = 0
-    type(table_t) :: frames, energy
+    type(table_t) :: frames, energy, field_out
   contains
     procedure :: load, read => read_file, scene_text, open_outputs, advance, finish
     procedure :: close_outputs, output_files, save_state, restore_state, counters
@@ -123,7 +124,7 @@ contains
     real(dp) :: f0x, f0y, gxx, gxy, gyx, gyy, x0, y0, amplitude, ex, ey, kx, ky, omega, phase
     real(dp) :: power, r0, r_core, mod_omega, mod_phase, mod_time
     integer(i8) :: n, seed, type_id, p, steps, frame_every, energy_every, checkpoint_every
-    integer(i8) :: progress_every
+    integer(i8) :: progress_every, field_grid
     character(len=nm) :: placement, velocities, law, neighbour, type, modulation, contact
     character(len=nm) :: method
     character(len=512) :: file
@@ -139,7 +140,7 @@ contains
          omega, phase, power, r0, r_core, modulation, mod_omega, mod_phase, mod_time, file
     namelist /walls/ gamma, contact
     namelist /integration/ method, dt, steps
-    namelist /output/ frame_every, energy_every, checkpoint_every, progress_every
+    namelist /output/ frame_every, energy_every, checkpoint_every, progress_every, field_grid
     kind = self%kind; title = self%title; l = self%l
     n = self%n; placement = self%placement; min_distance = self%min_distance
     velocities = self%velocities; speed = self%speed; temperature = self%temperature
@@ -158,6 +159,7 @@ contains
     method = self%integrator; dt = self%dt; steps = self%steps
     frame_every = self%frame_every; energy_every = self%energy_every
     checkpoint_every = self%checkpoint_every; progress_every = self%progress_every
+    field_grid = self%field_grid
     call open_scene(path, u, st)
     if (st%code /= 0) return
     read(u, nml=scene, iostat=ios, iomsg=iom)
@@ -195,6 +197,7 @@ contains
     self%integrator = method; self%dt = dt; self%steps = steps
     self%frame_every = frame_every; self%energy_every = energy_every
     self%checkpoint_every = checkpoint_every; self%progress_every = progress_every
+    self%field_grid = field_grid
   end subroutine read_file
 
   subroutine validate(self, path, st)
@@ -267,6 +270,7 @@ contains
       call check_int(path, 'output', 'checkpoint_every', self%checkpoint_every, 0_i8, &
            max_steps, st)
       call check_int(path, 'output', 'progress_every', self%progress_every, 0_i8, max_steps, st)
+      call check_int(path, 'output', 'field_grid', self%field_grid, 0_i8, 1000_i8, st)
       if (st%code /= 0) return
       if (trim(self%contact) == 'surface' .and. self%l <= 2) call set_error(st, &
            exit_bad_input, trim(path)//': &box l = '//real_str(self%l)//': allowed (2, 1e6] '// &
@@ -573,6 +577,7 @@ contains
     call put_int(text, 'energy_every', self%energy_every, 'steps (0 = off)')
     call put_int(text, 'checkpoint_every', self%checkpoint_every, 'steps (0 = none)')
     call put_int(text, 'progress_every', self%progress_every, 'steps (0 = about 200 lines)')
+    call put_int(text, 'field_grid', self%field_grid, 'field.dat points per side (0 = off)')
     text = text//'/'//nl
   end function scene_text
 
@@ -589,6 +594,10 @@ contains
          'without a potential); wall_hits cumulative; r_min the closest listed pair. '// &
          units, '# step t[T] e_kin[mga] u_pair[mga] u_field[mga] wall_hits r_min[a]', &
          append, st)
+    if (self%field_grid > 0) call table_open(self%field_out, dir, 'field.dat', &
+         '# field.dat: F_ext at the cell centres of a field_grid^2 grid over the box, at '// &
+         'step 0 and, for a time-dependent field, at every frame. '//units, &
+         '# step t[T] x[a] y[a] fx[mg] fy[mg]', append, st)
     self%writing = st%code == 0
   end subroutine open_outputs
 
@@ -600,6 +609,7 @@ contains
     names = ''
     call add_output(names, n, self%frame_every > 0, 'frames.dat')
     call add_output(names, n, self%energy_every > 0, 'energy.dat')
+    call add_output(names, n, self%field_grid > 0, 'field.dat')
   end subroutine output_files
 
   logical function due(every, step, last)
@@ -623,6 +633,8 @@ contains
     associate (s => self%s)
       o_frm = due(self%frame_every, s%step, last)
       o_en = due(self%energy_every, s%step, last)
+      if (self%field_grid > 0 .and. (s%step == 0 .or. (o_frm .and. .not. &
+           field_static(self%fl)))) call write_field(self, st)
       if (.not. (o_frm .or. o_en)) return
       call finish_velocity(self%method, self%dt, s)
       if (o_frm) then
@@ -645,6 +657,29 @@ contains
       end if
     end associate
   end subroutine write_rows
+
+  !> F_ext at the cell centres (i - 1/2) L/G, (j - 1/2) L/G of the grid, x fastest.
+  subroutine write_field(self, st)
+    class(lj_box_t), intent(inout) :: self
+    type(status_t), intent(inout) :: st
+    integer :: g, i, j, k
+    real(dp), allocatable :: gx(:), gy(:), fx(:), fy(:)
+    character(len=200) :: line
+    g = int(self%field_grid)
+    allocate(gx(g*g), gy(g*g), fx(g*g), fy(g*g))
+    do j = 1, g
+      do i = 1, g
+        gx(i + g*(j - 1)) = (i - 0.5_dp)*self%l/g
+        gy(i + g*(j - 1)) = (j - 0.5_dp)*self%l/g
+      end do
+    end do
+    fx = 0; fy = 0
+    call field_add(self%fl, self%s%t, g*g, gx, gy, fx, fy)
+    do k = 1, g*g
+      write(line, '(i0,5(1x,'//rfmt//'))') self%s%step, self%s%t, gx(k), gy(k), fx(k), fy(k)
+      call table_line(self%field_out, trim(line), st)
+    end do
+  end subroutine write_field
 
   !> One time step: forces f_n, rows of step n, x_n -> x_{n+1}, walls, guards.
   subroutine advance(self, st)
@@ -690,9 +725,11 @@ contains
     type(status_t), intent(inout) :: st
     call table_flush(self%frames, st)
     call table_flush(self%energy, st)
+    call table_flush(self%field_out, st)
     if (flush_only) return
     call table_close(self%frames, st)
     call table_close(self%energy, st)
+    call table_close(self%field_out, st)
     self%writing = .false.
   end subroutine close_outputs
 
