@@ -4,7 +4,9 @@ For each integrator (the seed's explicit Euler, semi-implicit Euler, velocity Ve
 time step: wall time per step, position error at t = 1 T and 4 T against a velocity-Verlet
 reference at dt = 1e-3/64 (the shipped demo scene: travelling wave, drag, inelastic walls,
 N = 200), the energy drift over 20 T of the conservative system (alpha = 0, gamma = 1, no
-field) and the largest step that keeps that energy within 10 % over 20 T.
+field) and the largest step that keeps that energy within 10 % over 20 T. Then the list skin
+(a pure speed knob: the trajectory may only change by round-off): time per step and the largest
+position difference against skin 0.6 a, N = 10 000 at the demo's density, 500 steps.
 
 Reproduce (from the repository root, about 2 minutes):
 
@@ -119,14 +121,36 @@ def main() -> int:
                 rows.append(row)
                 print(row, flush=True)
         stable = {m: largest_stable(tmp, m) for m in METHODS}
+        skins = skin_scan(tmp)
     df = pd.DataFrame(rows)
     df["largest_stable_dt"] = df["method"].map(stable)
     dest = ROOT / "bench" / "results"
     dest.mkdir(exist_ok=True)
     df.to_csv(dest / "lj_integrators.csv", index=False)
+    skins.to_csv(dest / "lj_skin.csv", index=False)
     with pd.option_context("display.width", 200, "display.float_format", "{:.3g}".format):
         print(df.to_string(index=False))
+        print(skins.to_string(index=False))
     return 0
+
+
+def skin_scan(tmp: Path) -> pd.DataFrame:
+    """Time per step against the Verlet skin at N = 10 000 (same density as the demo)."""
+    side = 40.0 * np.sqrt(10000 / 200)
+    base = {"particles.n": 10000, "box.l": side, "integration.steps": 500,
+            "output.frame_every": 500, "output.energy_every": 0}
+    out = {}
+    rows = []
+    for skin in (0.6, 0.1, 0.2, 0.4, 1.0, 1.5, 2.5):
+        code, d = run(tmp, f"skin{skin}", {**base, "steric.skin": skin})
+        meta = json.loads((d / "run.json").read_text())
+        out[skin] = positions(d)[500]
+        rows.append({"skin": skin, "us_per_step": 1e6 * meta["wall_time_per_step_s"],
+                     "list_builds": meta["list_builds"],
+                     "pairs_per_step": meta["pairs_evaluated"] / 501,
+                     "max_dx_vs_skin_0.6": float(np.abs(out[skin] - out[0.6]).max())})
+        print(rows[-1], flush=True)
+    return pd.DataFrame(rows).sort_values("skin")
 
 
 if __name__ == "__main__":
