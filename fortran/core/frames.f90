@@ -8,7 +8,7 @@
 !>   bytes 16-H   a JSON object (ASCII, blank-filled, ending in a newline):
 !>                {"format": "pyorch-frames", "version": 1, "byteorder": "little",
 !>                 "n": N, "record_bytes": R,
-!>                 "frame": [{"name": "step", "dtype": "<i8", "unit": "1", "offset": 0},
+!>                 "frame": [{"name": "step", "dtype": "<i8", "unit": "", "offset": 0},
 !>                           {"name": "t", "dtype": "<f8", "unit": "T", "offset": 8}],
 !>                 "columns": [{"name": "x", "dtype": "<f8", "unit": "D1", "offset": 16}, ...],
 !>                 "meta": {...the method's own members...}}
@@ -24,7 +24,8 @@
 !>   type(frames_t) :: fr
 !>   call frames_open(fr, dir//'/particles.bin', n, names, units, dtypes, 'step', 'T', &
 !>        meta, append, st)      ! names/units/dtypes: one per column, dtype 'i4' | 'f8';
-!>                              ! meta: JSON members without braces ('' for none);
+!>                              ! meta: JSON members without braces ('' for none;
+!>                              ! json_real(v) writes a real as a JSON number);
 !>                              ! append: continue after a resume (header verified)
 !>   each frame:  call frames_begin(fr, step, t, st)
 !>                call frames_put(fr, column, st)   ! every column in header order,
@@ -43,7 +44,7 @@ module frames
   private
 
   public :: frames_t, frames_open, frames_begin, frames_put, frames_end, frames_flush, &
-       frames_close, frames_is_open, frames_magic, frames_version
+       frames_close, frames_is_open, frames_magic, frames_version, json_real
 
   character(len=8), parameter :: frames_magic = 'PYORCHFR'
   integer, parameter :: frames_version = 1
@@ -219,7 +220,7 @@ contains
     js = '{"format": "pyorch-frames", "version": '//istr(int(frames_version, i8))// &
          ', "byteorder": "little",'//nl//' "n": '//istr(int(fr%n, i8))//', "record_bytes": '// &
          istr(fr%record_bytes)//','//nl//' "frame": ['// &
-         col(step_name, 'i8', '1', 0_i8)//', '//col('t', 'f8', time_unit, 8_i8)//'],'//nl// &
+         col(step_name, 'i8', '', 0_i8)//', '//col('t', 'f8', time_unit, 8_i8)//'],'//nl// &
          ' "columns": ['
     off = 16
     do k = 1, size(names)
@@ -274,6 +275,15 @@ contains
            'columns this scene writes')
     end if
   end subroutine check_existing
+
+  !> A real as a JSON number that round-trips a real64 (e.g. 2.0000000000000000E+001).
+  function json_real(v) result(s)
+    real(dp), intent(in) :: v
+    character(len=:), allocatable :: s
+    character(len=32) :: buf
+    write(buf, '(es24.16e3)') v
+    s = trim(adjustl(buf))
+  end function json_real
 
   function istr(v) result(s)
     integer(i8), intent(in) :: v

@@ -16,7 +16,7 @@ module edmd_dla
   use method, only: method_t, fname_len, max_out_files, add_output
   use tables, only: table_t, table_open, table_line, table_flush, table_close, rfmt
   use frames, only: frames_t, frames_open, frames_begin, frames_put, frames_end, frames_flush, &
-       frames_close
+       frames_close, json_real
   use ckpt, only: ckpt_writer_t, ckpt_put
   use, intrinsic :: iso_fortran_env, only: int8
   use scene_input, only: open_scene, group_status, kind_len, check_real, check_int, check_choice, put_real, put_int, &
@@ -410,8 +410,8 @@ contains
     type(status_t), intent(inout) :: st
     if (binary_frames(self)) call frames_open(self%frames_bin, trim(dir)//'/frames.bin', &
          self%s%n, frame_cols, frame_units, ['i4', 'f8', 'f8', 'f8', 'f8', 'f8', 'f8', 'i4'], &
-         'tick', 'tau', '"kind": "dla", "box": ['//real_str(self%lx)//', '// &
-         real_str(self%ly)//']', append, st)
+         'tick', 'tau', '"kind": "dla", "box": ['//json_real(self%lx)//', '// &
+         json_real(self%ly)//']', append, st)
     if (text_frames(self)) call table_open(self%frames, dir, 'frames.dat', &
          '# frames.dat: disks at fixed times (exact interpolation between events); state 0 '// &
          'free, 1 stuck, 2 seed; m = 0 for the seed (static). '//units, &

@@ -11,7 +11,7 @@ module output
   use state, only: state_t
   use files, only: cfile_t, cf_open, cf_is_open, cf_line, cf_sync, cf_close
   use frames, only: frames_t, frames_open, frames_begin, frames_put, frames_end, frames_flush, &
-       frames_close
+       frames_close, json_real
   implicit none
   private
 
@@ -52,7 +52,6 @@ contains
     logical, intent(in), optional :: binary_on
     integer, intent(in), optional :: n
     character(len=200) :: units
-    character(len=400) :: meta
     integer :: k
     o%dir = trim(dir)
     o%st = status_t()
@@ -75,11 +74,12 @@ contains
          'E_piston[m1*g*D1] E_total[m1*g*D1]')
     if (.not. present(binary_on) .or. st%code /= exit_ok) return
     if (.not. binary_on) return
-    write(meta, '(a,6(es24.16e3,a))') '"kind": "magnet_bed", "box": [', m%width, ', ', &
-         m%height, '], "units": {"length_m": ', m%length_unit, ', "time_s": ', m%time_unit, &
-         ', "mass_kg": ', m%mass_unit, ', "force_N": ', m%force_unit, '}'
     call frames_open(o%fb, o%dir//'/'//frames_name, n, frame_cols, frame_units, &
-         [('i4', k = 1, 2), ('f8', k = 3, 11)], 'step', 'T', trim(meta), append, st)
+         [('i4', k = 1, 2), ('f8', k = 3, 11)], 'step', 'T', '"kind": "magnet_bed", '// &
+         '"box": ['//json_real(m%width)//', '//json_real(m%height)//'], "units": '// &
+         '{"length_m": '//json_real(m%length_unit)//', "time_s": '//json_real(m%time_unit)// &
+         ', "mass_kg": '//json_real(m%mass_unit)//', "force_N": '//json_real(m%force_unit)// &
+         '}', append, st)
   contains
     subroutine open1(k, head1, head2)
       integer, intent(in) :: k
