@@ -40,6 +40,7 @@ module frames
   use kinds, only: dp, i8
   use errors, only: status_t, set_error, exit_ok, exit_io, exit_internal
   use files, only: cfile_t, cf_open, cf_is_open, cf_write, cf_sync, cf_close, file_exists
+  use scene_input, only: int_str
   implicit none
   private
 
@@ -200,8 +201,8 @@ contains
            'its last column')
     else if (fr%dtype(fr%next + 1) /= dtype .or. m /= fr%n) then
       call set_error(st, exit_internal, fr%f%path//': frames_put: column '// &
-           istr(int(fr%next + 1, i8))//' is '//fr%dtype(fr%next + 1)//' of '// &
-           istr(int(fr%n, i8))//' values, given '//dtype//' of '//istr(int(m, i8)))
+           int_str(int(fr%next + 1, i8))//' is '//fr%dtype(fr%next + 1)//' of '// &
+           int_str(int(fr%n, i8))//' values, given '//dtype//' of '//int_str(int(m, i8)))
     else
       next_ok = .true.
     end if
@@ -217,9 +218,9 @@ contains
     character(len=1), parameter :: nl = achar(10)
     integer(i8) :: off, total
     integer :: k
-    js = '{"format": "pyorch-frames", "version": '//istr(int(frames_version, i8))// &
-         ', "byteorder": "little",'//nl//' "n": '//istr(int(fr%n, i8))//', "record_bytes": '// &
-         istr(fr%record_bytes)//','//nl//' "frame": ['// &
+    js = '{"format": "pyorch-frames", "version": '//int_str(int(frames_version, i8))// &
+         ', "byteorder": "little",'//nl//' "n": '//int_str(int(fr%n, i8))//', "record_bytes": '// &
+         int_str(fr%record_bytes)//','//nl//' "frame": ['// &
          col(step_name, 'i8', '', 0_i8)//', '//col('t', 'f8', time_unit, 8_i8)//'],'//nl// &
          ' "columns": ['
     off = 16
@@ -239,7 +240,7 @@ contains
       integer(i8), intent(in) :: offset
       character(len=:), allocatable :: s
       s = '{"name": "'//trim(name)//'", "dtype": "<'//dtype//'", "unit": "'//trim(unit)// &
-           '", "offset": '//istr(offset)//'}'
+           '", "offset": '//int_str(offset)//'}'
     end function col
   end function header
 
@@ -259,9 +260,9 @@ contains
     inquire(file=trim(path), size=size_now)
     if (size_now < fr%header_bytes .or. mod(size_now - fr%header_bytes, fr%record_bytes) /= 0) &
          then
-      call set_error(st, exit_io, trim(path)//': refused: '//istr(size_now)//' bytes is not '// &
-           'the header ('//istr(fr%header_bytes)//') plus whole frames of '// &
-           istr(fr%record_bytes)//' bytes; the run directory is damaged')
+      call set_error(st, exit_io, trim(path)//': refused: '//int_str(size_now)//' bytes is not '// &
+           'the header ('//int_str(fr%header_bytes)//') plus whole frames of '// &
+           int_str(fr%record_bytes)//' bytes; the run directory is damaged')
       return
     end if
     open(newunit=u, file=trim(path), access='stream', form='unformatted', status='old', &
@@ -284,13 +285,5 @@ contains
     write(buf, '(es24.16e3)') v
     s = trim(adjustl(buf))
   end function json_real
-
-  function istr(v) result(s)
-    integer(i8), intent(in) :: v
-    character(len=:), allocatable :: s
-    character(len=24) :: buf
-    write(buf, '(i0)') v
-    s = trim(buf)
-  end function istr
 
 end module frames
