@@ -243,3 +243,10 @@ def test_no_frames_is_a_clear_error(tmp_path):
     assert "particles.bin" not in json.dumps(r.meta)
     with pytest.raises(RunError, match="no particle frames"):
         open_run(r.dir)
+
+
+def test_f2py_door_writes_the_same_binary_frames(bed_runs, tmp_path):
+    r = run(bed_runs["binary_scene"], tmp_path / "f", door="f2py", progress=False)
+    assert r.meta["status"] == "completed"
+    assert (r.dir / "particles.bin").read_bytes() == \
+        (bed_runs["binary"] / "particles.bin").read_bytes()
