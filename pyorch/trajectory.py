@@ -131,8 +131,9 @@ def _open_binary(path: Path) -> tuple[np.ndarray, dict[str, str], int]:
     body = size - hsize
     if body % dt.itemsize:
         raise _broken(path, f"truncated: {size} bytes is not the header ({hsize}) plus whole "
-                      f"frames of {dt.itemsize} bytes (a torn last frame; `pyorch run --resume` "
-                      f"cuts the file back to its last checkpoint); refused, never padded")
+                      f"frames of {dt.itemsize} bytes (a torn last frame: the run was killed, "
+                      f"or is still writing; `pyorch run --resume` cuts the file back to its "
+                      f"last checkpoint); refused, never padded")
     nf = body // dt.itemsize
     rec = (np.memmap(path, dtype=dt, mode="r", offset=hsize, shape=(nf,)) if nf
            else np.zeros(0, dtype=dt))

@@ -23,7 +23,8 @@
 !> run.json; the method lists the file in its output_files):
 !>   type(frames_t) :: fr
 !>   call frames_open(fr, dir//'/particles.bin', n, names, units, dtypes, 'step', 'T', &
-!>        meta, append, st)      ! names/units/dtypes: one per column, dtype 'i4' | 'f8';
+!>        meta, append, st)      ! names/units/dtypes: one per column, dtype 'i4' | 'f8'
+!>                              ! (names and units plain text: no quote, backslash, newline);
 !>                              ! meta: JSON members without braces ('' for none;
 !>                              ! json_real(v) writes a real as a JSON number);
 !>                              ! append: continue after a resume (header verified)
@@ -97,6 +98,12 @@ contains
     if (size(units) /= size(names) .or. size(dtypes) /= size(names) .or. n < 0) then
       call set_error(st, exit_internal, trim(path)//': frames_open: columns, units and '// &
            'dtypes differ in number (or n < 0)')
+      return
+    end if
+    if (any([(scan(names(k)//units(k), '"\'//achar(10)) > 0, k = 1, size(names))]) .or. &
+         scan(step_name//time_unit, '"\'//achar(10)) > 0) then
+      call set_error(st, exit_internal, trim(path)//': frames_open: a column name or unit '// &
+           'holds a quote, backslash or newline (the header is JSON)')
       return
     end if
     fr%n = n
