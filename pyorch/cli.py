@@ -8,6 +8,8 @@
     pyorch analyze RUN_DIR [--out DIR]
     pyorch bench trade|bias|seeds [--scene S] [--seeds N] [--quick] [--workers W] [--out DIR]
     pyorch sweep SWEEP.toml [--workers N] [--scheduler ADDR] [--cluster local|slurm]
+    pyorch export RUN_DIR --format gsd|xyz [-o FILE] [--double]
+    pyorch movie RUN_DIR [--fps F] [--every K] [--color-by C] [--out FILE.mp4|.gif]
 """
 from __future__ import annotations
 
@@ -53,6 +55,12 @@ def _parser() -> argparse.ArgumentParser:
 
     add_sweep_parser(sub)
 
+    from pyorch.export import add_parser as add_export_parser
+    from pyorch.movie import add_parser as add_movie_parser
+
+    add_export_parser(sub)
+    add_movie_parser(sub)
+
     b = sub.add_parser("bench", help="speed/accuracy trade study or truncation bias study")
     b.add_argument("what", choices=["trade", "bias", "seeds"],
                    help="trade: every knob; bias: bias vs r_c; seeds: seed-averaged bias of "
@@ -95,6 +103,14 @@ def _main(args: argparse.Namespace) -> int:
             from pyorch.sweep import cmd_sweep
 
             return cmd_sweep(args)
+        if args.cmd == "export":
+            from pyorch.export import cmd_export
+
+            return cmd_export(args)
+        if args.cmd == "movie":
+            from pyorch.movie import cmd_movie
+
+            return cmd_movie(args)
         if args.cmd == "bench":
             from pyorch.bench import main_bench
 
