@@ -398,3 +398,31 @@ def test_field_dat_matches_the_analytic_fields(tmp_path: Path) -> None:
     mag = np.where(r >= 6.0, -0.3 * (2.0 / r) ** 1.5, -0.3 * (2.0 / 6.0) ** 1.5 * r / 6.0)
     assert np.allclose(f["fx"], mag * dx / r, rtol=1e-13, atol=1e-15)
     assert np.allclose(f["fy"], mag * dy / r, rtol=1e-13, atol=1e-15)
+
+
+def test_binary_frames_equal_text_and_resume(tmp_path: Path) -> None:
+    """frames_format = 'both': frames.bin (core/frames.f90) holds the text frames' values bit
+    for bit; a paused and resumed binary run is byte-identical to an uninterrupted one."""
+    from pyorch.trajectory import FrameSpec, Trajectory
+
+    over = {"particles.velocities": "maxwell", "integration.steps": 600,
+            "output.frame_every": 100, "output.energy_every": 100,
+            "output.checkpoint_every": 250, "output.frames_format": "both"}
+    out = lj_run(tmp_path, "both", **over)
+    spec = FrameSpec(text="frames.dat", binary="frames.bin", types="type", type_offset=0,
+                     type_names=("A",), box=(40.0, 40.0), length_unit="a", time_unit="T")
+    txt = io.read_dat(out / "frames.dat")
+    with Trajectory(out / "frames.bin", spec) as tr:
+        assert len(tr) == 7 and tr.n == 200
+        for c in ("x", "y", "vx", "vy"):
+            assert np.array_equal(tr.column(c).ravel(), txt[c].to_numpy()), c
+        assert np.array_equal(tr.column("id").ravel(), txt["id"].to_numpy())
+    path = Scene.read(DEMO).with_overrides({**QUIET, **over, "output.frames_format": "binary"}
+                                           ).write(tmp_path / "b.nml")
+    part = tmp_path / "part"
+    p = subprocess.run([str(engine_executable()), str(path), "--out", str(part), "--quiet",
+                        "--stop-at", "333"], capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr
+    resume(part, progress=False)
+    assert not (part / "frames.dat").exists()
+    assert (part / "frames.bin").read_bytes() == (out / "frames.bin").read_bytes()

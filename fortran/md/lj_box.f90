@@ -13,6 +13,8 @@ module lj_box
   use errors, only: status_t, set_error, exit_bad_input, exit_io, exit_numerical, msg_len
   use method, only: method_t, fname_len, max_out_files, add_output
   use tables, only: table_t, table_open, table_line, table_flush, table_close, rfmt
+  use frames, only: frames_t, frames_open, frames_begin, frames_put, frames_end, frames_flush, &
+       frames_close, json_real
   use scene_input, only: open_scene, group_status, kind_len, check_real, check_int, &
        check_choice, put_real, put_int, put_str, int_str, real_str
   use ckpt, only: ckpt_writer_t, ckpt_put, file_crc64
@@ -41,6 +43,11 @@ module lj_box
   real(dp), parameter :: big = 1.0e12_dp
   character(len=*), parameter :: units = 'Units: length a (particle radius), time T = '// &
        'sqrt(a/g), mass m (all 1), force m g, energy m g a.'
+  !> columns of frames.dat and frames.bin after step and t
+  character(len=*), parameter :: frame_cols(6) = [character(len=4) :: 'id', 'type', 'x', 'y', &
+       'vx', 'vy']
+  character(len=*), parameter :: frame_units(6) = [character(len=4) :: '', '', 'a', 'a', 'a/T', &
+       'a/T']
 
   type, extends(method_t) :: lj_box_t
     ! &scene
@@ -80,6 +87,7 @@ module lj_box
     ! &output (cadences in steps; 0 = file off)
     integer(i8) :: frame_every = 100, energy_every = 100
     integer(i8) :: field_grid = 0           !< field.dat: grid points per side (0 = off)
+    character(len=nm) :: frames_format = 'text'   !< frames.dat | 'binary': frames.bin | 'both'
     ! built
     type(field_t) :: fl
     type(lj_law_t) :: lj
@@ -92,6 +100,7 @@ module lj_box
     integer(i8) :: table_crc = 0
     real(dp) :: r2min = 0
     type(table_t) :: frames, energy, field_out
+    type(frames_t) :: frames_bin
   contains
     procedure :: load, read => read_file, scene_text, open_outputs, advance, finish
     procedure :: close_outputs, output_files, save_state, restore_state, counters
@@ -126,7 +135,7 @@ contains
     integer(i8) :: n, seed, type_id, p, steps, frame_every, energy_every, checkpoint_every
     integer(i8) :: progress_every, field_grid
     character(len=nm) :: placement, velocities, law, neighbour, type, modulation, contact
-    character(len=nm) :: method
+    character(len=nm) :: method, frames_format
     character(len=512) :: file
     integer :: u, ios
     character(len=msg_len) :: iom
@@ -140,7 +149,8 @@ contains
          omega, phase, power, r0, r_core, modulation, mod_omega, mod_phase, mod_time, file
     namelist /walls/ gamma, contact
     namelist /integration/ method, dt, steps
-    namelist /output/ frame_every, energy_every, checkpoint_every, progress_every, field_grid
+    namelist /output/ frame_every, energy_every, checkpoint_every, progress_every, field_grid, &
+         frames_format
     kind = self%kind; title = self%title; l = self%l
     n = self%n; placement = self%placement; min_distance = self%min_distance
     velocities = self%velocities; speed = self%speed; temperature = self%temperature
@@ -159,7 +169,7 @@ contains
     method = self%integrator; dt = self%dt; steps = self%steps
     frame_every = self%frame_every; energy_every = self%energy_every
     checkpoint_every = self%checkpoint_every; progress_every = self%progress_every
-    field_grid = self%field_grid
+    field_grid = self%field_grid; frames_format = self%frames_format
     call open_scene(path, u, st)
     if (st%code /= 0) return
     read(u, nml=scene, iostat=ios, iomsg=iom)
@@ -197,7 +207,7 @@ contains
     self%integrator = method; self%dt = dt; self%steps = steps
     self%frame_every = frame_every; self%energy_every = energy_every
     self%checkpoint_every = checkpoint_every; self%progress_every = progress_every
-    self%field_grid = field_grid
+    self%field_grid = field_grid; self%frames_format = frames_format
   end subroutine read_file
 
   subroutine validate(self, path, st)
@@ -271,6 +281,8 @@ contains
            max_steps, st)
       call check_int(path, 'output', 'progress_every', self%progress_every, 0_i8, max_steps, st)
       call check_int(path, 'output', 'field_grid', self%field_grid, 0_i8, 1000_i8, st)
+      call check_choice(path, 'output', 'frames_format', self%frames_format, &
+           [character(len=nm) :: 'text', 'binary', 'both'], st)
       if (st%code /= 0) return
       if (trim(self%contact) == 'surface' .and. self%l <= 2) call set_error(st, &
            exit_bad_input, trim(path)//': &box l = '//real_str(self%l)//': allowed (2, 1e6] '// &
@@ -578,6 +590,8 @@ contains
     call put_int(text, 'checkpoint_every', self%checkpoint_every, 'steps (0 = none)')
     call put_int(text, 'progress_every', self%progress_every, 'steps (0 = about 200 lines)')
     call put_int(text, 'field_grid', self%field_grid, 'field.dat points per side (0 = off)')
+    call put_str(text, 'frames_format', self%frames_format, &
+         'text: frames.dat, binary: frames.bin, both')
     text = text//'/'//nl
   end function scene_text
 
@@ -586,7 +600,11 @@ contains
     character(len=*), intent(in) :: dir
     logical, intent(in) :: append
     type(status_t), intent(inout) :: st
-    if (self%frame_every > 0) call table_open(self%frames, dir, 'frames.dat', &
+    if (binary_frames(self)) call frames_open(self%frames_bin, trim(dir)//'/frames.bin', &
+         int(self%n), frame_cols, frame_units, ['i4', 'i4', 'f8', 'f8', 'f8', 'f8'], 'step', &
+         'T', '"kind": "lj_box", "box": ['//json_real(self%l)//', '//json_real(self%l)// &
+         '], "radius": 1', append, st)
+    if (text_frames(self)) call table_open(self%frames, dir, 'frames.dat', &
          '# frames.dat: Lennard-Jones box (seed 000), one row per particle per frame. '// &
          units, '# step t[T] id type x[a] y[a] vx[a/T] vy[a/T]', append, st)
     if (self%energy_every > 0) call table_open(self%energy, dir, 'energy.dat', &
@@ -607,10 +625,22 @@ contains
     integer, intent(out) :: n
     n = 0
     names = ''
-    call add_output(names, n, self%frame_every > 0, 'frames.dat')
+    call add_output(names, n, text_frames(self), 'frames.dat')
+    call add_output(names, n, binary_frames(self), 'frames.bin')
     call add_output(names, n, self%energy_every > 0, 'energy.dat')
     call add_output(names, n, self%field_grid > 0, 'field.dat')
   end subroutine output_files
+
+  !> Frames as text (frames.dat) / binary (frames.bin): &output frames_format.
+  logical function text_frames(self)
+    class(lj_box_t), intent(in) :: self
+    text_frames = self%frame_every > 0 .and. trim(self%frames_format) /= 'binary'
+  end function text_frames
+
+  logical function binary_frames(self)
+    class(lj_box_t), intent(in) :: self
+    binary_frames = self%frame_every > 0 .and. trim(self%frames_format) /= 'text'
+  end function binary_frames
 
   logical function due(every, step, last)
     integer(i8), intent(in) :: every, step
@@ -639,13 +669,25 @@ contains
       call finish_velocity(self%method, self%dt, s)
       if (o_frm) then
         allocate(at(s%n))
-        at(s%id) = [(k, k = 1, s%n)]
-        do k = 1, s%n
-          i = at(k)
-          write(line, '(i0,1x,'//rfmt//',1x,i0,1x,i0,4(1x,'//rfmt//'))') s%step, s%t, &
-               s%id(i), self%type_id, s%x(i), s%y(i), s%vx(i), s%vy(i)
-          call table_line(self%frames, trim(line), st)
-        end do
+        at(s%id) = [(k, k = 1, s%n)]          ! rows in particle-id order
+        if (text_frames(self)) then
+          do k = 1, s%n
+            i = at(k)
+            write(line, '(i0,1x,'//rfmt//',1x,i0,1x,i0,4(1x,'//rfmt//'))') s%step, s%t, &
+                 s%id(i), self%type_id, s%x(i), s%y(i), s%vx(i), s%vy(i)
+            call table_line(self%frames, trim(line), st)
+          end do
+        end if
+        if (binary_frames(self)) then
+          call frames_begin(self%frames_bin, s%step, s%t, st)
+          call frames_put(self%frames_bin, [(k, k = 1, s%n)], st)
+          call frames_put(self%frames_bin, [(int(self%type_id), k = 1, s%n)], st)
+          call frames_put(self%frames_bin, s%x(at), st)
+          call frames_put(self%frames_bin, s%y(at), st)
+          call frames_put(self%frames_bin, s%vx(at), st)
+          call frames_put(self%frames_bin, s%vy(at), st)
+          call frames_end(self%frames_bin, st)
+        end if
       end if
       if (o_en) then
         call energies(self, ek, up, uf)
@@ -726,7 +768,9 @@ contains
     call table_flush(self%frames, st)
     call table_flush(self%energy, st)
     call table_flush(self%field_out, st)
+    call frames_flush(self%frames_bin, st)
     if (flush_only) return
+    call frames_close(self%frames_bin, st)
     call table_close(self%frames, st)
     call table_close(self%energy, st)
     call table_close(self%field_out, st)
