@@ -16,7 +16,8 @@ closer than r_m (checked: r_min of every run is printed; the linear core is then
 the skin (``neigh_modify every 1 delay 0 check yes``), OMP_NUM_THREADS=1, one MPI rank.
 
 Timing: LAMMPS "Loop time" (its set-up excluded); partsim's (wall_S - wall_1)/(S - 1) from two
-runs (set-up subtracted) and wall_S/S (set-up included). Check: positions after S steps.
+runs (set-up subtracted) and wall_S/S (set-up included; frames written in binary, the step-0
+checkpoint and two energy rows are part of it). Check: positions after S steps.
 Output: bench/results/lj_lammps.csv.
 """
 from __future__ import annotations
@@ -51,13 +52,15 @@ def scene(n: int, phi: float, steps: int, dt: float, skin: float, seed: int) -> 
         "physics.alpha": 0.0, "field.type": "none", "walls.gamma": 1.0,
         "walls.contact": "surface", "integration.method": "velocity_verlet",
         "integration.dt": dt, "integration.steps": steps, "output.frame_every": steps,
-        "output.energy_every": steps, "output.checkpoint_every": 0})
+        "output.frames_format": "binary", "output.energy_every": steps,
+        "output.checkpoint_every": 0})
     return sc, side
 
 
 def partsim(n: int, a: argparse.Namespace, out: Path) -> dict[str, Any]:
     from pyorch import io
     from pyorch.run import run
+    from pyorch.trajectory import FrameSpec, Trajectory
 
     res: dict[str, Any] = {}
     for steps in (1, a.steps):
@@ -68,7 +71,10 @@ def partsim(n: int, a: argparse.Namespace, out: Path) -> dict[str, Any]:
             run(sc, d, progress=False, overwrite=True)
             best = min(best, json.loads((d / "run.json").read_text())["wall_time_s"])
         res[steps] = best
-    fr = io.read_dat(d / "frames.dat")
+    spec = FrameSpec(text="frames.dat", binary="frames.bin", types="type", type_offset=0,
+                     box=(side, side))
+    with Trajectory(d / "frames.bin", spec) as tr:
+        fr = tr.to_dataframe()
     e = io.read_dat(d / "energy.dat")
     return {"side": side, "wall_1": res[1], "wall_S": res[a.steps], "dir": d,
             "frame0": fr[fr["step"] == 0].sort_values("id"),

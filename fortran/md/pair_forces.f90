@@ -93,39 +93,43 @@ contains
     s = merge(s_lj, s_core, r2 > l%rm2)*merge(1.0_dp, 0.0_dp, r2 < l%rc2)
   end subroutine lj_kernel
 
-  pure elemental subroutine lj6_kernel(c4p, fcore, rm2, rc2, r2, s)
-    real(dp), intent(in) :: c4p, fcore, rm2, rc2, r2
+  !> p = 6 above r_m (no sqrt, no branch: vectorises); r2 at or below r_m^2 is evaluated at
+  !> r_m and flagged (core = 1) for lj_chunk's fix-up with the core force.
+  pure elemental subroutine lj6_kernel(c4p, rm2, rc2, r2, s, core)
+    real(dp), intent(in) :: c4p, rm2, rc2, r2
     real(dp), intent(out) :: s
-    real(dp) :: r2inv, w, q, s_lj, s_core, t, c
-    ! both branches computed (the power law at max(r2, r_m^2): finite however close the
-    ! pair), then blended with exact 0/1 weights: no branch in the loop (vectorises)
+    integer, intent(out) :: core
+    real(dp) :: w, q
     w = 4.0_dp/max(r2, rm2)
     q = w*w*w
-    s_lj = 0.25_dp*c4p*w*(2*q*q - q)
-    r2inv = 1.0_dp/r2
-    s_core = fcore*sqrt(r2inv)
-    t = merge(1.0_dp, 0.0_dp, r2 > rm2)
-    c = merge(1.0_dp, 0.0_dp, r2 < rc2)
-    s = (t*s_lj + (1 - t)*s_core)*c
+    s = 0.25_dp*c4p*w*(2*q*q - q)*merge(1.0_dp, 0.0_dp, r2 < rc2)
+    core = merge(1, 0, r2 <= rm2)
   end subroutine lj6_kernel
 
   !> The Lennard-Jones kernel of the law over a chunk of nk squared distances (the law's
-  !> numbers copied to locals first: the loop then vectorises).
+  !> numbers copied to locals first: the loop then vectorises). Pairs inside the linear
+  !> core (rare) get |U'(r_m)|/r in a second, scalar loop run only when the chunk has any.
   subroutine lj_chunk(l, nk, r2s, cs)
     type(lj_law_t), intent(in) :: l
     integer, intent(in) :: nk
     real(dp), intent(in) :: r2s(nk)
     real(dp), intent(out) :: cs(nk)
-    real(dp) :: c4p, fcore, rm2, rc2
-    integer :: m
-    if (l%kernel == kernel_lj6) then
-      c4p = l%c4p; fcore = l%fcore; rm2 = l%rm2; rc2 = l%rc2
-      do m = 1, nk
-        call lj6_kernel(c4p, fcore, rm2, rc2, r2s(m), cs(m))
-      end do
-    else
+    real(dp) :: c4p, rm2, rc2
+    integer :: m, cores, core
+    if (l%kernel /= kernel_lj6) then
       call lj_kernel(l, r2s, cs)
+      return
     end if
+    c4p = l%c4p; rm2 = l%rm2; rc2 = l%rc2
+    cores = 0
+    do m = 1, nk
+      call lj6_kernel(c4p, rm2, rc2, r2s(m), cs(m), core)
+      cores = cores + core
+    end do
+    if (cores == 0) return
+    do m = 1, nk
+      if (r2s(m) <= rm2) cs(m) = l%fcore*sqrt(1.0_dp/r2s(m))
+    end do
   end subroutine lj_chunk
 
   !> Potential energy of the law [m g a] (pairs within R): over the pairs of a half list
@@ -414,8 +418,8 @@ contains
     real(dp), intent(inout) :: fx(n), fy(n), sx(*), sy(*)
     real(dp), intent(inout) :: r2low
     integer, parameter :: chunk = 256
-    integer :: i, j, m, k0, nk, k_hi
-    real(dp) :: low, gx, gy
+    integer :: i, j, m, k0, nk, k_hi, ic
+    real(dp) :: low, gx, gy, ax, ay
     real(dp) :: dxs(chunk), dys(chunk), r2s(chunk), cs(chunk)
     low = r2low
     k_hi = start(i_hi + 1) - 1
@@ -430,13 +434,23 @@ contains
         low = min(low, r2s(m))
       end do
       call lj_chunk(l, nk, r2s, cs)
+      ! the action on i summed in registers while the row lasts (pairs are in row order):
+      ! no store-to-load chain through fx(i) from one pair to the next
+      ic = own(k0)
+      ax = 0; ay = 0
       do m = 1, nk
         i = own(k0 + m - 1)
         j = nbr(k0 + m - 1)
+        if (i /= ic) then
+          fx(ic) = fx(ic) + ax
+          fy(ic) = fy(ic) + ay
+          ic = i
+          ax = 0; ay = 0
+        end if
         gx = cs(m)*dxs(m)
         gy = cs(m)*dys(m)
-        fx(i) = fx(i) + gx
-        fy(i) = fy(i) + gy
+        ax = ax + gx
+        ay = ay + gy
         if (j <= hi_direct) then
           fx(j) = fx(j) - gx
           fy(j) = fy(j) - gy
@@ -445,6 +459,8 @@ contains
           sy(j) = sy(j) - gy
         end if
       end do
+      fx(ic) = fx(ic) + ax
+      fy(ic) = fy(ic) + ay
     end do
     r2low = low
   end subroutine rows_pairs
