@@ -15,7 +15,9 @@ closer than r_m (checked: r_min of every run is printed; the linear core is then
 (``fix nve``), dt = 1e-3 T, Verlet list skin 0.6 a rebuilt when an atom moved more than half
 the skin (``neigh_modify every 1 delay 0 check yes``), OMP_NUM_THREADS=1, one MPI rank.
 
-Timing: LAMMPS "Loop time" (its set-up excluded); partsim's (wall_S - wall_1)/(S - 1) from two
+Timing (wall clock and, robust to other load on a shared machine, CPU time: the engine's
+child-process CPU seconds, LAMMPS' process time around its run command): LAMMPS "Loop time"
+(its set-up excluded); partsim's (wall_S - wall_1)/(S - 1) from two
 runs (set-up subtracted) and wall_S/S (set-up included; frames written in binary, the step-0
 checkpoint and two energy rows are part of it). Check: positions after S steps.
 Output: bench/results/lj_lammps.csv.
@@ -26,6 +28,8 @@ import argparse
 import json
 import math
 import os
+import resource
+import time
 import sys
 from pathlib import Path
 from typing import Any, Sequence
@@ -62,21 +66,26 @@ def partsim(n: int, a: argparse.Namespace, out: Path) -> dict[str, Any]:
     from pyorch.run import run
     from pyorch.trajectory import FrameSpec, Trajectory
 
-    res: dict[str, Any] = {}
+    res: dict[int, float] = {}
+    cpu: dict[int, float] = {}
     for steps in (1, a.steps):
         sc, side = scene(n, a.phi, steps, a.dt, a.skin, a.seed)
         d = out / f"partsim_n{n}_s{steps}"
-        best = math.inf
-        for _ in range(a.repeat if steps > 1 else 1):
+        best = best_cpu = math.inf
+        for _ in range(a.repeat):
+            c0 = children_cpu()
             run(sc, d, progress=False, overwrite=True)
+            best_cpu = min(best_cpu, children_cpu() - c0)
             best = min(best, json.loads((d / "run.json").read_text())["wall_time_s"])
         res[steps] = best
+        cpu[steps] = best_cpu
     spec = FrameSpec(text="frames.dat", binary="frames.bin", types="type", type_offset=0,
                      box=(side, side))
     with Trajectory(d / "frames.bin", spec) as tr:
         fr = tr.to_dataframe()
     e = io.read_dat(d / "energy.dat")
     return {"side": side, "wall_1": res[1], "wall_S": res[a.steps], "dir": d,
+            "cpu_1": cpu[1], "cpu_S": cpu[a.steps],
             "frame0": fr[fr["step"] == 0].sort_values("id"),
             "xS": fr[fr["step"] == a.steps].sort_values("id")[["x", "y"]].to_numpy(),
             "r_min": float(e["r_min"].min()),
@@ -100,11 +109,19 @@ def lammps(lmp_cls: Any, frame0: Any, side: float, a: argparse.Namespace, work: 
     try:
         for c in cmds:
             lmp.command(c)
+        c0 = time.process_time()
         lmp.command(f"run {a.steps}")
+        cpu = time.process_time() - c0
         x = by_id(lmp, "x")
     finally:
         lmp.close()
-    return {"log": parse_log(log.read_text()), "xS": x}
+    return {"log": parse_log(log.read_text()), "xS": x, "cpu": cpu}
+
+
+def children_cpu() -> float:
+    """User + system CPU seconds of the finished child processes (the engine runs)."""
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
 
 
 def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
@@ -145,6 +162,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             "partsim_particle_steps_per_s": n / ps_sub,
             "lammps_particle_steps_per_s": n / lm_step,
             "speedup": lm_step / ps_sub, "speedup_incl_setup": lm_step / (ps["wall_S"] / s),
+            "speedup_cpu": lm["cpu"] / (ps["cpu_S"] - ps["cpu_1"]) * (s - 1) / s,
+            "speedup_cpu_incl_setup": lm["cpu"] / ps["cpu_S"],
             "max_dx_after_S": float(np.abs(ps["xS"] - lm["xS"]).max()),
             "r_min_a": ps["r_min"], "lammps_builds": lm["log"]["builds"],
             "partsim_builds": ps["meta"]["list_builds"],

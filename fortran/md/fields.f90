@@ -16,8 +16,9 @@
 !> (gxy = gyx), longitudinal waves (e parallel to k) and point fields; m(t) U otherwise 0
 !> (field_has_potential tells which).
 module fields
-  use kinds, only: dp
+  use kinds, only: dp, i8
   use errors, only: status_t, set_error, exit_bad_input, msg_len
+  use scene_input, only: int_str
   implicit none
   private
 
@@ -334,9 +335,7 @@ contains
     function istr(q) result(s)
       integer, intent(in) :: q
       character(len=:), allocatable :: s
-      character(len=16) :: b
-      write(b, '(i0)') q
-      s = trim(b)
+      s = int_str(int(q, i8))
     end function istr
   end subroutine field_read_table
 

@@ -16,7 +16,7 @@ module lj_box
   use frames, only: frames_t, frames_open, frames_begin, frames_put, frames_end, frames_flush, &
        frames_close, json_real
   use scene_input, only: open_scene, group_status, kind_len, check_real, check_int, &
-       check_choice, put_real, put_int, put_str, int_str, real_str
+       check_choice, choice_index, put_real, put_int, put_str, int_str, real_str
   use ckpt, only: ckpt_writer_t, ckpt_put, file_crc64
   use state, only: state_t, state_allocate
   use neighbours, only: nlist_t, nlist_setup, nlist_refresh, nlist_owners, nb_all_pairs, &
@@ -43,6 +43,12 @@ module lj_box
   real(dp), parameter :: big = 1.0e12_dp
   character(len=*), parameter :: units = 'Units: length a (particle radius), time T = '// &
        'sqrt(a/g), mass m (all 1), force m g, energy m g a.'
+  character(len=*), parameter :: method_names(3) = [character(len=19) :: 'euler', &
+       'semi_implicit_euler', 'velocity_verlet']
+  integer, parameter :: method_codes(3) = [int_euler, int_semi_euler, int_velocity_verlet]
+  character(len=*), parameter :: neighbour_names(3) = [character(len=9) :: 'verlet', 'cells', &
+       'all_pairs']
+  integer, parameter :: neighbour_codes(3) = [nb_verlet, nb_cells, nb_all_pairs]
   !> columns of frames.dat and frames.bin after step and t
   character(len=*), parameter :: frame_cols(6) = [character(len=4) :: 'id', 'type', 'x', 'y', &
        'vx', 'vy']
@@ -214,7 +220,6 @@ contains
     class(lj_box_t), intent(inout) :: self
     character(len=*), intent(in) :: path
     type(status_t), intent(inout) :: st
-    integer :: k
     associate (f => self%fl)
       call check_choice(path, 'scene', 'kind', self%kind, ['lj_box'], st)
       call check_real(path, 'box', 'l', self%l, 0.0_dp, 1.0e6_dp, .false., st)
@@ -240,8 +245,7 @@ contains
       if (self%r_m == 2.0_dp) call set_error(st, exit_bad_input, trim(path)// &
            ': &steric r_m = 2: allowed (0, 2) [a] (seed 000: r_m < 2a)')
       call check_real(path, 'steric', 'r_cut', self%r_cut, self%r_m, 1.0e6_dp, .false., st)
-      call check_choice(path, 'steric', 'neighbour', self%neighbour, &
-           [character(len=nm) :: 'verlet', 'cells', 'all_pairs'], st)
+      call check_choice(path, 'steric', 'neighbour', self%neighbour, neighbour_names, st)
       call check_real(path, 'steric', 'skin', self%skin, 0.0_dp, 1.0e3_dp, &
            trim(self%neighbour) /= 'verlet', st)
       call check_real(path, 'physics', 'alpha', self%alpha, 0.0_dp, 1.0e6_dp, .true., st)
@@ -271,8 +275,7 @@ contains
       call check_real(path, 'walls', 'gamma', self%gamma, 0.0_dp, 1.0_dp, .false., st)
       call check_choice(path, 'walls', 'contact', self%contact, &
            [character(len=nm) :: 'surface', 'centre'], st)
-      call check_choice(path, 'integration', 'method', self%integrator, &
-           [character(len=nm) :: 'euler', 'semi_implicit_euler', 'velocity_verlet'], st)
+      call check_choice(path, 'integration', 'method', self%integrator, method_names, st)
       call check_real(path, 'integration', 'dt', self%dt, 0.0_dp, 1.0e3_dp, .false., st)
       call check_int(path, 'integration', 'steps', self%steps, 1_i8, max_steps, st)
       call check_int(path, 'output', 'frame_every', self%frame_every, 0_i8, max_steps, st)
@@ -287,12 +290,8 @@ contains
       if (trim(self%contact) == 'surface' .and. self%l <= 2) call set_error(st, &
            exit_bad_input, trim(path)//': &box l = '//real_str(self%l)//': allowed (2, 1e6] '// &
            'with &walls contact = ''surface'' (the centres stay a away from the walls)')
-      do k = lbound(field_shapes, 1), ubound(field_shapes, 1)
-        if (trim(field_shapes(k)) == trim(self%field_type)) f%shape = k
-      end do
-      do k = lbound(field_modulations, 1), ubound(field_modulations, 1)
-        if (trim(field_modulations(k)) == trim(self%modulation)) f%modulation = k
-      end do
+      f%shape = choice_index(self%field_type, field_shapes) - 1       ! codes from 0
+      f%modulation = choice_index(self%modulation, field_modulations) - 1
       select case (trim(self%field_type))
       case ('standing_wave', 'travelling_wave')
         if (f%ex == 0 .and. f%ey == 0) call set_error(st, exit_bad_input, trim(path)// &
@@ -337,24 +336,10 @@ contains
         end if
       end if
     end associate
-    select case (trim(self%integrator))
-    case ('euler')
-      self%method = int_euler
-    case ('velocity_verlet')
-      self%method = int_velocity_verlet
-    case default
-      self%method = int_semi_euler
-    end select
+    self%method = method_codes(choice_index(self%integrator, method_names))
     self%steric_on = trim(self%law) == 'lj'
     self%lj = lj_law(int(self%p), self%u0, self%r_m, self%r_cut)
-    select case (trim(self%neighbour))
-    case ('all_pairs')
-      self%strategy = nb_all_pairs
-    case ('cells')
-      self%strategy = nb_cells
-    case default
-      self%strategy = nb_verlet
-    end select
+    self%strategy = neighbour_codes(choice_index(self%neighbour, neighbour_names))
     call init_threads()
     call state_allocate(self%s, int(self%n))
     if (self%steric_on .and. self%strategy /= nb_all_pairs) then
