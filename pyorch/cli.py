@@ -8,6 +8,8 @@
     pyorch analyze RUN_DIR [--out DIR]
     pyorch bench trade|bias|seeds [--scene S] [--seeds N] [--quick] [--workers W] [--out DIR]
     pyorch sweep SWEEP.toml [--workers N] [--scheduler ADDR] [--cluster local|slurm]
+    pyorch dataset gns SPEC.toml [--workers N] [--scheduler ADDR] [--dry-run]
+    pyorch dataset check DATASET_DIR
 """
 from __future__ import annotations
 
@@ -53,6 +55,10 @@ def _parser() -> argparse.ArgumentParser:
 
     add_sweep_parser(sub)
 
+    from pyorch.gns import add_parser as add_dataset_parser
+
+    add_dataset_parser(sub)
+
     b = sub.add_parser("bench", help="speed/accuracy trade study or truncation bias study")
     b.add_argument("what", choices=["trade", "bias", "seeds"],
                    help="trade: every knob; bias: bias vs r_c; seeds: seed-averaged bias of "
@@ -95,6 +101,10 @@ def _main(args: argparse.Namespace) -> int:
             from pyorch.sweep import cmd_sweep
 
             return cmd_sweep(args)
+        if args.cmd == "dataset":
+            from pyorch.gns import cmd_dataset
+
+            return cmd_dataset(args)
         if args.cmd == "bench":
             from pyorch.bench import main_bench
 
