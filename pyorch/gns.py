@@ -9,12 +9,18 @@ of the others) and writes a dataset directory::
                                    trajectory's index in the spec's point order), each value an
                                    object array (positions float32 (frames, N, 2) [a],
                                    particle_type int64 (N,))
-    metadata.json                  bounds, sequence_length (= frames - 1), dim, dt (time between
+    metadata.json                  bounds, sequence_length (= frames, see below), dim, dt (time between
                                    frames [T]), default_connectivity_radius [a], vel_mean/std,
                                    acc_mean/std, boundary_augment
     dataset.json                   provenance: spec, base scene, every trajectory's overrides,
                                    seed, run directory, split, engine version; failures
     runs/                          the sweep: manifest.json, results.csv, one run per trajectory
+
+``sequence_length`` is the number of frames of every trajectory, as geoelements/gns defines it
+for its npz datasets ("number of timesteps in your trajectory", docs/gns_data.md): its rollout
+predicts ``sequence_length - 6`` steps from the first 6 frames and subtracts them from the
+``frames - 6`` remaining true frames, so DeepMind's TFRecord convention (frames - 1, for records
+whose last frame the TF reader removes) makes gns' rollout fail on a shape mismatch.
 
 Statistics are those gns normalises with: per dimension, pooled over every particle, frame and
 *training* trajectory of the float32 positions, velocity v = x_t - x_{t-1} and acceleration
@@ -527,7 +533,7 @@ def assemble(spec: DatasetSpec, results: pd.DataFrame | None = None) -> dict[str
     else:
         radius, measured = connectivity_radius(train, spec.target_neighbours)
         source = f"computed: mean neighbours {spec.target_neighbours:g} in the training frames"
-    metadata = {"bounds": [[0.0, side], [0.0, side]], "sequence_length": frames - 1,
+    metadata = {"bounds": [[0.0, side], [0.0, side]], "sequence_length": frames,
                 "default_connectivity_radius": radius, "dim": 2, "dt": dt,
                 **statistics(train), "boundary_augment": spec.boundary_augment}
     n_part = [e["particles"] for e in done]
@@ -685,9 +691,9 @@ def _check_metadata(md: Mapping[str, Any], where: str) -> None:
     for k in ("default_connectivity_radius", "dt"):
         if not (isinstance(md[k], (int, float)) and md[k] > 0 and math.isfinite(md[k])):
             raise DatasetError(f"{where}: {k} = {md[k]!r}: expected a number > 0")
-    if not (isinstance(md["sequence_length"], int) and md["sequence_length"] >= MIN_FRAMES - 1):
+    if not (isinstance(md["sequence_length"], int) and md["sequence_length"] >= MIN_FRAMES):
         raise DatasetError(f"{where}: sequence_length = {md['sequence_length']!r}: expected an "
-                           f"integer >= {MIN_FRAMES - 1}")
+                           f"integer >= {MIN_FRAMES} (the frames of every trajectory)")
 
 
 def _check_trajectory(pos: Any, types: Any, bounds: NDArray[np.float64], frames: int,
@@ -701,7 +707,7 @@ def _check_trajectory(pos: Any, types: Any, bounds: NDArray[np.float64], frames:
         raise DatasetError(f"{where}: {pos.shape[0]} frames; gns needs at least {MIN_FRAMES} "
                            f"({INPUT_SEQUENCE_LENGTH} input frames + 1 target)")
     if pos.shape[0] != frames:
-        raise DatasetError(f"{where}: {pos.shape[0]} frames, but metadata sequence_length + 1 = "
+        raise DatasetError(f"{where}: {pos.shape[0]} frames, but metadata sequence_length = "
                            f"{frames} (gns' rollout predicts sequence_length - "
                            f"{INPUT_SEQUENCE_LENGTH} steps of every trajectory)")
     if not isinstance(types, np.ndarray) or types.dtype != np.int64:
@@ -730,13 +736,13 @@ def _check_trajectory(pos: Any, types: Any, bounds: NDArray[np.float64], frames:
 def validate(ds: Dataset) -> None:
     """Check a loaded dataset as gns will use it: metadata keys and formats; every trajectory's
     dtypes (float32 positions, int64 types), shapes, >= 7 frames and equal to
-    sequence_length + 1, finite positions inside the bounds, no kinematic type 3; the statistics
+    sequence_length, finite positions inside the bounds, no kinematic type 3; the statistics
     recomputed from the training trajectories equal to metadata.json; dataset.json's split lists
     equal to the npz keys. DatasetError naming file and key otherwise."""
     md_where = str(ds.path / "metadata.json")
     _check_metadata(ds.metadata, md_where)
     bounds = np.asarray(ds.metadata["bounds"], dtype=np.float64)
-    frames = int(ds.metadata["sequence_length"]) + 1
+    frames = int(ds.metadata["sequence_length"])
     for s in SPLITS:
         for key, (pos, types) in ds.splits[s].items():
             _check_trajectory(pos, types, bounds, frames, f"{ds.path / (s + '.npz')}: {key}")
@@ -792,7 +798,7 @@ def cmd_dataset(args: argparse.Namespace) -> int:
             return 4
         n = {s: len(ds.splits[s]) for s in SPLITS}
         print(f"{args.dir}: ok: train {n['train']}, valid {n['valid']}, test {n['test']} "
-              f"trajectories of {ds.metadata['sequence_length'] + 1} frames")
+              f"trajectories of {ds.metadata['sequence_length']} frames")
         return 0
     try:
         spec = DatasetSpec.from_toml(args.spec)

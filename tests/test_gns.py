@@ -58,10 +58,11 @@ def dataset(tmp_path: Path) -> tuple[gns.DatasetSpec, dict]:
     return spec, gns.assemble(spec)
 
 
-def _gns_style_read(path: Path) -> list:
-    """What geoelements/gns' loaders do with an npz (read in its data_loader and
-    particle_data_loader): every value of the file as (positions, particle_type), sample
-    windows of input_sequence_length frames, types broadcast with np.full(n, type, dtype=int)."""
+def _gns_style_read(path: Path, sequence_length: int) -> list:
+    """What geoelements/gns does with an npz (read in its data_loader, particle_data_loader and
+    train.rollout): every value of the file as (positions, particle_type), sample windows of 6
+    input frames, types broadcast with np.full(n, type, dtype=int); a rollout predicts
+    sequence_length - 6 steps and subtracts the true frames positions[6:] from them."""
     with np.load(path, allow_pickle=True) as f:
         data = [item for _, item in f.items()]
     out = []
@@ -72,6 +73,9 @@ def _gns_style_read(path: Path) -> list:
         windows = positions.shape[0] - 6
         assert windows >= 1
         win = np.transpose(positions[0:6], (1, 0, 2))
+        nsteps = sequence_length - 6
+        predictions = np.zeros((nsteps, n, 2))
+        assert (predictions - positions[6:]).shape == (nsteps, n, 2)
         out.append((win.shape, np.full(n, ptype, dtype=int), positions[6].shape))
     return out
 
@@ -189,7 +193,7 @@ def test_metadata_has_what_gns_reads(dataset) -> None:
     spec, prov = dataset
     md = json.loads((spec.out / "metadata.json").read_text())
     assert md["bounds"] == [[0.0, 20.0], [0.0, 20.0]]
-    assert md["sequence_length"] == 9 and md["dim"] == 2
+    assert md["sequence_length"] == 10 and md["dim"] == 2
     assert md["dt"] == pytest.approx(0.1, rel=1e-12)
     assert md["default_connectivity_radius"] == 5.0
     assert md["boundary_augment"] == 1.0
@@ -200,7 +204,7 @@ def test_metadata_has_what_gns_reads(dataset) -> None:
     everything = [p for s in gns.SPLITS for p, _ in gns.load(spec.out).splits[s].values()]
     assert gns.statistics(everything)["vel_std"] != md["vel_std"]
     for s in gns.SPLITS:
-        for shape, ptype, label in _gns_style_read(spec.out / f"{s}.npz"):
+        for shape, ptype, label in _gns_style_read(spec.out / f"{s}.npz", md["sequence_length"]):
             assert shape[1:] == (6, 2) and ptype.shape == (shape[0],) and label == (shape[0], 2)
 
 
@@ -315,3 +319,153 @@ def test_cli_check(dataset) -> None:
     bad = subprocess.run(cmd, capture_output=True, text=True, env=env)
     assert bad.returncode == 4
     assert "particle_type 3" in bad.stderr and "Traceback" not in bad.stderr
+
+
+# ----------------------------------------------------------------------------- with the engine
+DEMO = ROOT / "runs" / "lj_demo.nml"
+QUICK = ROOT / "runs" / "datasets" / "gns_quick.toml"
+
+
+def _spec_file(tmp: Path, text: str | None = None, **replace: str) -> Path:
+    """gns_quick.toml (or ``text``) with an absolute base and ``out`` in tmp."""
+    text = QUICK.read_text() if text is None else text
+    text = text.replace('base = "../lj_demo.nml"', f'base = "{DEMO}"')
+    text = text.replace('out = "../out/datasets/gns_quick"', f'out = "{tmp / "ds"}"')
+    for old, new in replace.items():
+        assert old in text
+        text = text.replace(old, new)
+    path = tmp / "spec.toml"
+    path.write_text(text)
+    return path
+
+
+@pytest.fixture(scope="module")
+def client():
+    import dask
+    from distributed import Client, LocalCluster
+
+    with dask.config.set({"distributed.scheduler.worker-saturation": 1.0}):
+        cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                               dashboard_address=":0")
+    cl = Client(cluster)
+    yield cl
+    cl.close()
+    cluster.close()
+
+
+def test_generated_dataset_equals_the_engine_frames_and_resumes(client, tmp_path: Path) -> None:
+    spec = gns.DatasetSpec.from_toml(_spec_file(tmp_path))
+    res, prov = gns.generate(spec, client=client, progress=False)
+    assert (res["action"] == "ran").all() and (res["status"] == "completed").all()
+    ds = gns.load(spec.out)
+    assert prov["counts"] == {"points": 10, "completed": 10, "failed": 0, "train": 6, "valid": 2,
+                              "test": 2, "frames": 21, "particles_min": 30, "particles_max": 30}
+    assert ds.metadata["sequence_length"] == 21 and ds.metadata["bounds"] == [[0, 20], [0, 20]]
+    assert ds.metadata["dt"] == pytest.approx(0.1, rel=1e-12)
+    assert prov["engine_version"] and prov["connectivity"]["mean_neighbours_at_radius"] == \
+        pytest.approx(10, abs=0.5)
+    for e in prov["trajectories"]:
+        rows = [ln.split() for ln in Path(e["dir"], "frames.dat").read_text().splitlines()
+                if not ln.startswith("#")]
+        xy = np.array([[float(r[4]), float(r[5])] for r in rows]).reshape(21, 30, 2)
+        pos, types = ds.splits[e["split"]][e["key"]]
+        assert pos.tobytes() == xy.astype(np.float32).tobytes()
+        assert types.tolist() == [int(r[3]) for r in rows[:30]]
+        from pyorch import lj
+
+        sc = lj.scene(e["dir"])
+        assert sc["particles"]["seed"] == e["seed"]
+        assert sc["walls"]["gamma"] == e["overrides"]["walls.gamma"]
+    # resume: nothing is re-run or re-extracted, the dataset is the same
+    before = {p: p.stat().st_mtime_ns for p in spec.out.glob("runs/*/*") if p.is_file()}
+    md = (spec.out / "metadata.json").read_text()
+    res2, _ = gns.generate(spec, client=client, progress=False)
+    assert (res2["action"] == "skipped").all() and (res2["extracted"] == "cached").all()
+    assert before == {p: p.stat().st_mtime_ns for p in spec.out.glob("runs/*/*") if p.is_file()}
+    assert (spec.out / "metadata.json").read_text() == md
+    # one trajectory lost: only it runs again, and its data is the same (deterministic engine)
+    lost = Path(prov["trajectories"][3]["dir"])
+    old = (lost / "frames.dat").read_bytes()
+    shutil.rmtree(lost)
+    res3, _ = gns.generate(spec, client=client, progress=False)
+    assert res3.set_index("name")["action"].to_dict() == \
+        {n: ("ran" if n == lost.name else "skipped") for n in res3["name"]}
+    assert (lost / "frames.dat").read_bytes() == old
+    assert (spec.out / "metadata.json").read_text() == md
+
+
+def test_a_failed_trajectory_is_isolated(client, tmp_path: Path) -> None:
+    """gamma = 0 is refused by the engine: those points are listed as failed, the dataset holds
+    the others with the split the spec gave them; the command exits 3."""
+    fr = {"train": 0.5, "valid": 0.25, "test": 0.25}
+    # points are grid (gamma 0, 1) x seeds 1..4: index 2 k + j ... pick a split seed that leaves
+    # every split a gamma = 1 trajectory
+    spec_text = QUICK.read_text().replace('"walls.gamma" = [0.8, 1.0]', '"walls.gamma" = [0.0, 1.0]')
+    spec_text = spec_text.replace("seeds = 5", "seeds = 4").replace(
+        "train = 0.6\nvalid = 0.2\ntest = 0.2", "train = 0.5\nvalid = 0.25\ntest = 0.25")
+    seed = next(s for s in range(50) if all(
+        any(w == sp and i >= 4 for i, w in enumerate(gns.split_assignment(8, fr, s)))
+        for sp in gns.SPLITS))
+    path = _spec_file(tmp_path, spec_text.replace("seed = 0", f"seed = {seed}"))
+    spec = gns.DatasetSpec.from_toml(path)
+    res, prov = gns.generate(spec, client=client, progress=False)
+    pts = spec.points()
+    refused = set(pts["name"][pts["walls.gamma"] == 0.0])
+    assert set(res["name"][res["status"] == "refused"]) == refused
+    assert {f["name"] for f in prov["failed"]} == refused
+    assert all("gamma" in f["message"] for f in prov["failed"])
+    ds = gns.load(spec.out)
+    for s in gns.SPLITS:
+        assert sorted(ds.splits[s]) == sorted(f"simulation_trajectory_{i}" for i in
+                                              pts["index"][(pts["split"] == s) &
+                                                           (pts["walls.gamma"] == 1.0)])
+    cli = subprocess.run([sys.executable, "-m", "pyorch", "dataset", "gns", str(path),
+                          "--workers", "2", "--no-progress"], capture_output=True, text=True)
+    assert cli.returncode == 3, cli.stderr
+    assert "4/8 trajectories" in cli.stdout and "0 run now" in cli.stdout
+
+
+@pytest.mark.parametrize("replace, message", [
+    ({'"integration.steps" = 2000': '"integration.steps" = 2050'}, "multiple of output.frame_every"),
+    ({'"integration.steps" = 2000': '"integration.steps" = 500'}, "6 frames; gns needs at least 7"),
+    ({'"walls.gamma" = [0.8, 1.0]': '"box.l" = [20.0, 30.0]'}, "box.l differs"),
+    ({'"walls.gamma" = [0.8, 1.0]': '"output.frame_every" = [100, 200]'},
+     "integration.dt \\* output.frame_every differs"),
+    ({"target_neighbours = 10": "neighbours = 10"}, r"\[gns\]: unknown keys \['neighbours'\]"),
+    ({"target_neighbours = 10": "type_map = { 0 = 3 }"}, "gns particle_type 3"),
+    ({"train = 0.6": "train = 0.7"}, "must add up to 1"),
+    ({"seeds = 5": "seeds = 0"}, "seeds = 0"),
+    ({"[split]": "[splits]"}, "unknown keys"),
+])
+def test_bad_specs_are_refused_before_anything_runs(tmp_path: Path, replace, message) -> None:
+    path = _spec_file(tmp_path, **replace)
+    with pytest.raises(SceneError, match=message):
+        gns.DatasetSpec.from_toml(path).check()
+    assert not (tmp_path / "ds").exists()
+    cli = subprocess.run([sys.executable, "-m", "pyorch", "dataset", "gns", str(path)],
+                         capture_output=True, text=True)
+    assert cli.returncode == 2 and "Traceback" not in cli.stderr
+
+
+def test_other_kinds_are_refused(tmp_path: Path) -> None:
+    text = QUICK.read_text().split("[set]")[0].replace('"../lj_demo.nml"',
+                                                      f'"{ROOT / "runs" / "oscillator.nml"}"')
+    path = tmp_path / "osc.toml"
+    path.write_text(text)
+    with pytest.raises(SceneError, match="GNS datasets are built from kind 'lj_box'"):
+        gns.DatasetSpec.from_toml(path)
+
+
+def test_dry_run_lists_the_split(tmp_path: Path) -> None:
+    cli = subprocess.run([sys.executable, "-m", "pyorch", "dataset", "gns",
+                          str(_spec_file(tmp_path)), "--dry-run"], capture_output=True, text=True)
+    assert cli.returncode == 0, cli.stderr
+    assert "10 trajectories of 21 frames, box 20.0 a, frame dt 0.1 T" in cli.stdout
+    assert cli.stdout.count("train") == 6 and cli.stdout.count("valid") == 2
+    assert not (tmp_path / "ds" / "runs").exists()
+
+
+def test_example_specs_check() -> None:
+    for path in sorted((ROOT / "runs" / "datasets").glob("*.toml")):
+        common = gns.DatasetSpec.from_toml(path).check()
+        assert common["frames"] >= gns.MIN_FRAMES
