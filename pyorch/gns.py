@@ -72,11 +72,6 @@ from numpy.typing import NDArray
 
 from pyorch import RunError, SceneError
 
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover - Python 3.10
-    import tomli as tomllib
-
 KIND = "lj_box"
 SPLITS = ("train", "valid", "test")
 INPUT_SEQUENCE_LENGTH = 6            # gns' input frames (5 velocities); one more is the target
@@ -269,18 +264,10 @@ class DatasetSpec:
     @classmethod
     def from_toml(cls, path: str | Path) -> "DatasetSpec":
         """Read a dataset spec (module docstring); SceneError naming the key otherwise."""
-        from pyorch.sweep import Sweep, _flatten
+        from pyorch.sweep import Sweep, _flatten, read_spec
 
         path = Path(path)
-        try:
-            text = path.read_text(encoding="utf-8")
-            spec = tomllib.loads(text)
-        except (OSError, tomllib.TOMLDecodeError) as exc:
-            raise SceneError(f"{path}: cannot read dataset spec: {exc}") from exc
-        unknown = set(spec) - _SPEC_KEYS
-        if unknown or "base" not in spec:
-            raise SceneError(f"{path}: needs 'base'; unknown keys {sorted(unknown)} "
-                             f"(allowed: {', '.join(sorted(_SPEC_KEYS))})")
+        spec, text = read_spec(path, _SPEC_KEYS, "dataset spec")
         here = path.absolute().parent
         out = here / spec["out"] if "out" in spec else here / "out" / "datasets" / path.stem
         seeds = spec.get("seeds", 1)
@@ -769,16 +756,13 @@ def validate(ds: Dataset) -> None:
 def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     """``dataset gns SPEC.toml [--workers N] [--scheduler ADDR] [--cluster local|slurm]
     [--no-progress] [--dry-run]`` and ``dataset check DIR``."""
+    from pyorch.sweep import add_cluster_arguments
+
     p = subparsers.add_parser("dataset", help="machine-learning datasets from many runs")
     sub = p.add_subparsers(dest="dataset_cmd", required=True)
     g = sub.add_parser("gns", help="a geoelements/gns training set from lj_box trajectories")
     g.add_argument("spec", type=Path, help="dataset spec (TOML), see runs/datasets/")
-    g.add_argument("--scheduler", default=None, metavar="ADDR",
-                   help="join a running dask scheduler, e.g. tcp://host:8786")
-    g.add_argument("--workers", type=int, default=None, metavar="N",
-                   help="workers to start (default: usable cores; slurm: min(points, 32))")
-    g.add_argument("--cluster", choices=["local", "slurm"], default="local")
-    g.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_cluster_arguments(g)
     g.add_argument("--dry-run", action="store_true",
                    help="check the spec and list the trajectories with their split")
     c = sub.add_parser("check", help="load and validate a gns dataset directory")
@@ -788,8 +772,9 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
 
 
 def cmd_dataset(args: argparse.Namespace) -> int:
-    """``pyorch dataset``: 0 ok, 2 bad spec, 3 some trajectory failed (the dataset holds the
-    others) or a split is empty (nothing written), 4 a broken dataset (check)."""
+    """``pyorch dataset``: 0 ok, 3 some trajectory failed (the dataset holds the others) or a
+    split is empty (nothing written: RunError), 4 a broken dataset (check). A bad spec raises
+    SceneError (pyorch.cli: exit 2)."""
     if args.dataset_cmd == "check":
         try:
             ds = load(args.dir)
@@ -800,25 +785,18 @@ def cmd_dataset(args: argparse.Namespace) -> int:
         print(f"{args.dir}: ok: train {n['train']}, valid {n['valid']}, test {n['test']} "
               f"trajectories of {ds.metadata['sequence_length']} frames")
         return 0
-    try:
-        spec = DatasetSpec.from_toml(args.spec)
-        common = spec.check()
-        if args.dry_run:
-            pts = spec.points()
-            print(f"{spec.out}: {len(pts)} trajectories of {common['frames']} frames, box "
-                  f"{common['l']} a, frame dt {common['dt_frame']} T")
-            print(pts.drop(columns=["overrides", "dir"]).to_string(index=False))
-            return 0
-        t0 = time.perf_counter()
-        results, prov = generate(spec, scheduler_address=args.scheduler, cluster=args.cluster,
-                                 n_workers=args.workers, progress=not args.no_progress)
-        wall = time.perf_counter() - t0
-    except SceneError as exc:
-        print(f"pyorch: error: {exc}", file=sys.stderr)
-        return 2
-    except RunError as exc:
-        print(f"pyorch: error: {exc}", file=sys.stderr)
-        return exc.code
+    spec = DatasetSpec.from_toml(args.spec)
+    common = spec.check()
+    if args.dry_run:
+        pts = spec.points()
+        print(f"{spec.out}: {len(pts)} trajectories of {common['frames']} frames, box "
+              f"{common['l']} a, frame dt {common['dt_frame']} T")
+        print(pts.drop(columns=["overrides", "dir"]).to_string(index=False))
+        return 0
+    t0 = time.perf_counter()
+    results, prov = generate(spec, scheduler_address=args.scheduler, cluster=args.cluster,
+                             n_workers=args.workers, progress=not args.no_progress)
+    wall = time.perf_counter() - t0
     c = prov["counts"]
     ran = int((results["action"].isin(["ran", "reran", "resumed"])).sum())
     print(f"{spec.out}: {c['completed']}/{c['points']} trajectories (train {c['train']}, valid "
