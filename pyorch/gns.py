@@ -424,12 +424,14 @@ def trajectory_task(base_path: str | Path, overrides: Mapping[str, Any], out_dir
     from pyorch.sweep import run_point
 
     row = run_point(base_path, overrides, out_dir, metrics or no_metrics)
-    row.update(frames=math.nan, particles=math.nan, extracted="")
+    row.update(frames=math.nan, particles=math.nan, extracted="", extract_s=math.nan)
     if row.get("status") == "completed":
+        t0 = time.perf_counter()
         try:
             row.update(extract(row["dir"]))
         except Exception as exc:  # the task must never raise
             row.update(status="failed: extraction", message=f"{type(exc).__name__}: {exc}")
+        row["extract_s"] = time.perf_counter() - t0
     return row
 
 
@@ -592,13 +594,17 @@ def generate(spec: DatasetSpec, client: Any = None, scheduler_address: str | Non
              progress: bool = True) -> tuple[pd.DataFrame, dict[str, Any]]:
     """Run every trajectory of ``spec`` on dask.distributed (:meth:`pyorch.sweep.Sweep.run`
     with :func:`trajectory_task`: completed runs are skipped, interrupted ones resumed) and
-    assemble the dataset. Returns the sweep's results table and the dataset.json document."""
+    assemble the dataset. Returns the sweep's results table (with ``extract_s`` [s] per
+    trajectory) and the dataset.json document plus ``timing`` (sweep_s, assemble_s [s])."""
     spec.check()
     spec.out.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
     results = spec.sweep.run(client=client, scheduler_address=scheduler_address, cluster=cluster,
                              n_workers=n_workers, progress=progress, metrics=no_metrics,
                              task=trajectory_task)
-    return results, assemble(spec, results)
+    t1 = time.perf_counter()
+    prov = assemble(spec, results)
+    return results, {**prov, "timing": {"sweep_s": t1 - t0, "assemble_s": time.perf_counter() - t1}}
 
 
 # --------------------------------------------------------------------------------------------------
@@ -800,7 +806,9 @@ def cmd_dataset(args: argparse.Namespace) -> int:
     c = prov["counts"]
     ran = int((results["action"].isin(["ran", "reran", "resumed"])).sum())
     print(f"{spec.out}: {c['completed']}/{c['points']} trajectories (train {c['train']}, valid "
-          f"{c['valid']}, test {c['test']}; {ran} run now) in {wall:.1f} s; connectivity radius "
+          f"{c['valid']}, test {c['test']}; {ran} run now) in {wall:.1f} s (sweep "
+          f"{prov['timing']['sweep_s']:.1f} s, assembly {prov['timing']['assemble_s']:.1f} s); "
+          f"connectivity radius "
           f"{prov['connectivity']['radius']:.4g} a "
           f"({prov['connectivity']['mean_neighbours_at_radius']:.3g} neighbours)")
     for f in prov["failed"]:
