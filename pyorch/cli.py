@@ -10,6 +10,8 @@
     pyorch sweep SWEEP.toml [--workers N] [--scheduler ADDR] [--cluster local|slurm]
     pyorch dataset gns SPEC.toml [--workers N] [--scheduler ADDR] [--dry-run]
     pyorch dataset check DATASET_DIR
+    pyorch export RUN_DIR --format gsd|xyz [-o FILE] [--double]
+    pyorch movie RUN_DIR [--fps F] [--every K] [--color-by C] [--out FILE.mp4|.gif]
 """
 from __future__ import annotations
 
@@ -59,6 +61,12 @@ def _parser() -> argparse.ArgumentParser:
 
     add_dataset_parser(sub)
 
+    from pyorch.export import add_parser as add_export_parser
+    from pyorch.movie import add_parser as add_movie_parser
+
+    add_export_parser(sub)
+    add_movie_parser(sub)
+
     b = sub.add_parser("bench", help="speed/accuracy trade study or truncation bias study")
     b.add_argument("what", choices=["trade", "bias", "seeds"],
                    help="trade: every knob; bias: bias vs r_c; seeds: seed-averaged bias of "
@@ -105,6 +113,14 @@ def _main(args: argparse.Namespace) -> int:
             from pyorch.gns import cmd_dataset
 
             return cmd_dataset(args)
+        if args.cmd == "export":
+            from pyorch.export import cmd_export
+
+            return cmd_export(args)
+        if args.cmd == "movie":
+            from pyorch.movie import cmd_movie
+
+            return cmd_movie(args)
         if args.cmd == "bench":
             from pyorch.bench import main_bench
 

@@ -93,9 +93,20 @@ def piston(run_dir: str | Path) -> pd.DataFrame:
 
 
 def frames(run_dir: str | Path) -> pd.DataFrame:
-    """particles.dat (long format): step, t, id, species, x, y [D1], vx, vy [D1/T],
-    fx, fy (total force), fmag, fmx, fmy (magnetic force of pairs + walls) [m1 g]."""
-    return read_dat(Path(run_dir) / "particles.dat")
+    """Particle frames (long format): step, t, id, species, x, y [D1], vx, vy [D1/T],
+    fx, fy (total force), fmag, fmx, fmy (magnetic force of pairs + walls) [m1 g], from
+    particles.bin (binary frames) if written, else particles.dat. Frame by frame and lazily:
+    :func:`pyorch.trajectory.open_run`."""
+    from pyorch.bed import frame_spec
+    from pyorch.trajectory import frames_dataframe
+
+    return frames_dataframe(run_dir, frame_spec(run_dir, geometry=False))
+
+
+def has_frames(run_dir: str | Path) -> bool:
+    """Whether a bed run directory holds particle frames (text or binary)."""
+    return (Path(run_dir) / "particles.dat").is_file() or \
+        (Path(run_dir) / "particles.bin").is_file()
 
 
 def mean_distance(run_dir: str | Path) -> pd.DataFrame:

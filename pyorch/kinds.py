@@ -4,7 +4,8 @@ subpackage that reads, analyses and plots its run directories.
 Every kind runs through the same engine executable and the same ``pyorch run/check/plot/sweep``;
 the engine dispatches on ``&scene kind``. A subpackage (``pyorch.bed``, ``pyorch.oscillator``)
 provides ``save_run_plots(run_dir, out=None) -> list[Path]`` and ``default_metrics(run_dir)
--> dict`` (the sweep's per-point results).
+-> dict`` (the sweep's per-point results); a kind with particle frames also provides
+``frame_spec(run_dir) -> pyorch.trajectory.FrameSpec`` (reading, ``pyorch export``, ``pyorch movie``).
 """
 from __future__ import annotations
 

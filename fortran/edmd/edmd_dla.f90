@@ -15,6 +15,8 @@ module edmd_dla
   use errors, only: status_t, set_error, exit_bad_input, exit_io, msg_len
   use method, only: method_t, fname_len, max_out_files, add_output
   use tables, only: table_t, table_open, table_line, table_flush, table_close, rfmt
+  use frames, only: frames_t, frames_open, frames_begin, frames_put, frames_end, frames_flush, &
+       frames_close, json_real
   use ckpt, only: ckpt_writer_t, ckpt_put
   use, intrinsic :: iso_fortran_env, only: int8
   use scene_input, only: open_scene, group_status, kind_len, check_real, check_int, check_choice, put_real, put_int, &
@@ -65,6 +67,7 @@ module edmd_dla
     integer(i8) :: history_every = 5
     integer(i8) :: check_every = 1
     logical :: log_events = .false.
+    character(len=name_len) :: frames_format = 'text'   !< frames.dat | 'binary': frames.bin | 'both'
     ! state
     type(ed_t) :: s
     integer(i8) :: step = 0                           !< ticks done
@@ -73,11 +76,17 @@ module edmd_dla
     integer :: n_members = 0                          !< aggregate rows written
     real(dp) :: seconds = 0                           !< CPU time in the event loop [s] (not state)
     type(table_t) :: frames, history, aggregate, events
+    type(frames_t) :: frames_bin
   contains
     procedure :: load, read => read_file, scene_text, open_outputs, advance, finish, close_outputs, output_files
     procedure :: save_state, restore_state, counters, progress_text, json_fields
   end type dla_t
 
+  !> columns of frames.dat and frames.bin after tick and t
+  character(len=*), parameter :: frame_cols(8) = [character(len=5) :: 'id', 'x', 'y', 'vx', &
+       'vy', 'r', 'm', 'state']
+  character(len=*), parameter :: frame_units(8) = [character(len=5) :: '', 'L', 'L', 'L/tau', &
+       'L/tau', 'L', 'M', '1']
   character(len=*), parameter :: units = 'Units: length L (box unit), mass M, energy E (kT), '// &
        'time tau = L sqrt(M/E).'
 
@@ -110,7 +119,7 @@ contains
          vx0(max_explicit), vy0(max_explicit)
     integer(i8) :: n_species, count(max_species), seed, frame_every, history_every, check_every, &
          checkpoint_every
-    character(len=name_len) :: mass_rule, velocities, placement, calendar
+    character(len=name_len) :: mass_rule, velocities, placement, calendar, frames_format
     logical :: sticking, last_bounces, stop_when_done, log_events
     integer :: u, ios
     character(len=msg_len) :: iom
@@ -120,7 +129,8 @@ contains
          seed, x0, y0, vx0, vy0
     namelist /aggregate/ sticking, seed_radius, seed_x, seed_y, last_bounces, stop_when_done
     namelist /run/ calendar, tick, t_end, guard_tol
-    namelist /output/ frame_every, history_every, check_every, checkpoint_every, log_events
+    namelist /output/ frame_every, history_every, check_every, checkpoint_every, log_events, &
+         frames_format
     kind = self%kind; title = self%title; lx = self%lx; ly = self%ly
     n_species = self%n_species; count = self%count; radius = self%radius
     density = self%density; mass_rule = self%mass_rule; kt = self%kt
@@ -131,7 +141,7 @@ contains
     calendar = self%calendar; tick = self%tick; t_end = self%t_end; guard_tol = self%guard_tol
     frame_every = self%frame_every; history_every = self%history_every
     check_every = self%check_every; checkpoint_every = self%checkpoint_every
-    log_events = self%log_events
+    log_events = self%log_events; frames_format = self%frames_format
     call open_scene(path, u, st)
     if (st%code /= 0) return
     read(u, nml=scene, iostat=ios, iomsg=iom)
@@ -158,7 +168,7 @@ contains
     self%calendar = calendar; self%tick = tick; self%t_end = t_end; self%guard_tol = guard_tol
     self%frame_every = frame_every; self%history_every = history_every
     self%check_every = check_every; self%checkpoint_every = checkpoint_every
-    self%log_events = log_events
+    self%log_events = log_events; self%frames_format = frames_format
   end subroutine read_file
 
   subroutine validate(self, path, st)
@@ -220,6 +230,8 @@ contains
     call check_int(path, 'output', 'history_every', self%history_every, 0_i8, max_ticks, st)
     call check_int(path, 'output', 'check_every', self%check_every, 0_i8, max_ticks, st)
     call check_int(path, 'output', 'checkpoint_every', self%checkpoint_every, 0_i8, max_ticks, st)
+    call check_choice(path, 'output', 'frames_format', self%frames_format, &
+         [character(len=name_len) :: 'text', 'binary', 'both'], st)
   end subroutine validate
 
   !> placement = 'explicit': at most max_explicit disks, inside the box, no overlap (contact
@@ -386,6 +398,8 @@ contains
     call put_int(text, 'check_every', self%check_every, 'ticks: all-pairs overlap guard (0 = off)')
     call put_int(text, 'checkpoint_every', self%checkpoint_every, 'ticks (0 = none)')
     call put_logical(text, 'log_events', self%log_events, 'events.dat (small systems)')
+    call put_str(text, 'frames_format', self%frames_format, &
+         'text: frames.dat, binary: frames.bin, both')
     text = text//'/'//achar(10)
   end function scene_text
 
@@ -394,7 +408,11 @@ contains
     character(len=*), intent(in) :: dir
     logical, intent(in) :: append
     type(status_t), intent(inout) :: st
-    if (self%frame_every > 0) call table_open(self%frames, dir, 'frames.dat', &
+    if (binary_frames(self)) call frames_open(self%frames_bin, trim(dir)//'/frames.bin', &
+         self%s%n, frame_cols, frame_units, ['i4', 'f8', 'f8', 'f8', 'f8', 'f8', 'f8', 'i4'], &
+         'tick', 'tau', '"kind": "dla", "box": ['//json_real(self%lx)//', '// &
+         json_real(self%ly)//']', append, st)
+    if (text_frames(self)) call table_open(self%frames, dir, 'frames.dat', &
          '# frames.dat: disks at fixed times (exact interpolation between events); state 0 '// &
          'free, 1 stuck, 2 seed; m = 0 for the seed (static). '//units, &
          '# tick t[tau] id x[L] y[L] vx[L/tau] vy[L/tau] r[L] m[M] state[1]', append, st)
@@ -426,11 +444,55 @@ contains
     integer, intent(out) :: n
     n = 0
     names = ''
-    call add_output(names, n, self%frame_every > 0, 'frames.dat')
+    call add_output(names, n, text_frames(self), 'frames.dat')
     call add_output(names, n, self%history_every > 0, 'history.dat')
     call add_output(names, n, self%sticking, 'aggregate.dat')
     call add_output(names, n, self%log_events, 'events.dat')
+    call add_output(names, n, binary_frames(self), 'frames.bin')
   end subroutine output_files
+
+  !> Frames as text (frames.dat) / binary (frames.bin): &output frames_format.
+  logical function text_frames(self)
+    class(dla_t), intent(in) :: self
+    text_frames = self%frame_every > 0 .and. trim(self%frames_format) /= 'binary'
+  end function text_frames
+
+  logical function binary_frames(self)
+    class(dla_t), intent(in) :: self
+    binary_frames = self%frame_every > 0 .and. trim(self%frames_format) /= 'text'
+  end function binary_frames
+
+  !> One frame at time t [tau] (positions interpolated exactly between events).
+  subroutine frame_rows(self, t, st)
+    class(dla_t), intent(inout) :: self
+    real(dp), intent(in) :: t
+    type(status_t), intent(inout) :: st
+    integer :: i
+    real(dp), allocatable :: p(:, :)
+    character(len=400) :: line
+    allocate(p(2, self%s%n))
+    do i = 1, self%s%n
+      p(:, i) = ed_position(self%s, i, t)
+    end do
+    if (binary_frames(self)) then
+      call frames_begin(self%frames_bin, self%step, t, st)
+      call frames_put(self%frames_bin, [(i, i = 1, self%s%n)], st)
+      call frames_put(self%frames_bin, p(1, :), st)
+      call frames_put(self%frames_bin, p(2, :), st)
+      call frames_put(self%frames_bin, self%s%v(1, :), st)
+      call frames_put(self%frames_bin, self%s%v(2, :), st)
+      call frames_put(self%frames_bin, self%s%r, st)
+      call frames_put(self%frames_bin, self%s%m, st)
+      call frames_put(self%frames_bin, self%s%state, st)
+      call frames_end(self%frames_bin, st)
+    end if
+    if (.not. text_frames(self)) return
+    do i = 1, self%s%n
+      write(line, '(i0,1x,'//rfmt//',1x,i0,6(1x,'//rfmt//'),1x,i0)') &
+           self%step, t, i, p(:, i), self%s%v(:, i), self%s%r(i), self%s%m(i), self%s%state(i)
+      call table_line(self%frames, trim(line), st)
+    end do
+  end subroutine frame_rows
 
   subroutine member_row(self, i, st)
     class(dla_t), intent(inout) :: self
@@ -472,21 +534,12 @@ contains
     class(dla_t), intent(inout) :: self
     logical, intent(in) :: last
     type(status_t), intent(inout) :: st
-    integer :: i
-    real(dp) :: t, p(2), dt, area, pv, pw, ek, mom(2)
+    real(dp) :: t, dt, area, pv, pw, ek, mom(2)
     character(len=400) :: line
     t = real(self%step, dp)*self%tick
     if (due(self%check_every)) call ed_check_overlaps(self%s, t, st)
     if (st%code /= 0 .or. .not. self%writing) return
-    if (due(self%frame_every)) then
-      do i = 1, self%s%n
-        p = ed_position(self%s, i, t)
-        write(line, '(i0,1x,'//rfmt//',1x,i0,6(1x,'//rfmt//'),1x,i0)') &
-             self%step, t, i, p, self%s%v(:, i), self%s%r(i), self%s%m(i), &
-             self%s%state(i)
-        call table_line(self%frames, trim(line), st)
-      end do
-    end if
+    if (due(self%frame_every)) call frame_rows(self, t, st)
     if (due(self%history_every)) then
       dt = t - self%t_hist
       area = self%lx*self%ly
@@ -542,11 +595,13 @@ contains
     logical, intent(in) :: flush_only
     type(status_t), intent(inout) :: st
     call table_flush(self%frames, st)
+    call frames_flush(self%frames_bin, st)
     call table_flush(self%history, st)
     call table_flush(self%aggregate, st)
     call table_flush(self%events, st)
     if (flush_only) return
     call table_close(self%frames, st)
+    call frames_close(self%frames_bin, st)
     call table_close(self%history, st)
     call table_close(self%aggregate, st)
     call table_close(self%events, st)

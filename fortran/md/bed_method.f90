@@ -11,7 +11,7 @@ module bed_method
   use engine, only: sim_t, sim_load, sim_step, pairs_per_step
   use protocol, only: phase_names
   use scene, only: scene_text_of => scene_text, scene_read
-  use output, only: output_open, output_close, output_flush, output_names
+  use output, only: output_open, output_close, output_flush, output_names, frames_name
   use checkpoint, only: checkpoint_save, checkpoint_restore
   implicit none
   private
@@ -67,8 +67,9 @@ contains
     logical, intent(in) :: append
     type(status_t), intent(inout) :: st
     associate (sc => self%sim%sc)
-      call output_open(self%sim%o, dir, self%sim%m, sc%piston_every > 0, sc%frame_every > 0, &
-           sc%distance_every > 0, sc%energy_every > 0, append, st)
+      call output_open(self%sim%o, dir, self%sim%m, sc%piston_every > 0, text_frames(self), &
+           sc%distance_every > 0, sc%energy_every > 0, append, st, binary_frames(self), &
+           self%sim%s%n)
     end associate
     if (st%code /= 0) return
     self%sim%writing = .true.
@@ -110,11 +111,23 @@ contains
     n = 0
     associate (sc => self%sim%sc)
       call add_output(names, n, sc%piston_every > 0, output_names(1))
-      call add_output(names, n, sc%frame_every > 0, output_names(2))
+      call add_output(names, n, text_frames(self), output_names(2))
       call add_output(names, n, sc%distance_every > 0, output_names(3))
       call add_output(names, n, sc%energy_every > 0, output_names(4))
+      call add_output(names, n, binary_frames(self), frames_name)
     end associate
   end subroutine output_files
+
+  !> Frames as text (particles.dat) / binary (particles.bin): &output frames_format.
+  logical function text_frames(self)
+    class(bed_t), intent(in) :: self
+    text_frames = self%sim%sc%frame_every > 0 .and. trim(self%sim%sc%frames_format) /= 'binary'
+  end function text_frames
+
+  logical function binary_frames(self)
+    class(bed_t), intent(in) :: self
+    binary_frames = self%sim%sc%frame_every > 0 .and. trim(self%sim%sc%frames_format) /= 'text'
+  end function binary_frames
 
   subroutine save_state(self, w)
     class(bed_t), intent(in) :: self

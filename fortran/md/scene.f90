@@ -107,6 +107,7 @@ module scene
     ! &output (cadences in steps; 0 switches a file off)
     integer :: piston_every = 100
     integer :: frame_every = 0
+    character(len=name_len) :: frames_format = 'text'   !< particles.dat | 'binary': particles.bin | 'both'
     integer :: distance_every = 1000
     integer :: energy_every = 0
     integer :: progress_every = 0        !< 0: about 200 progress lines per run
@@ -143,6 +144,7 @@ contains
     logical :: expand
     integer :: piston_every, frame_every, distance_every, energy_every, progress_every
     integer :: checkpoint_every
+    character(len=name_len) :: frames_format
 
     namelist /scene/ kind, title
     namelist /material/ diameter, thickness, density, remanence, gap, gravity_si
@@ -157,7 +159,7 @@ contains
          piston_speed, t_hold, expand, t_final, t_end, piston_mass, piston_gamma, t_settle, &
          nudge, t_record, settle_speed, settle_ekin, settle_hold
     namelist /output/ piston_every, frame_every, distance_every, energy_every, &
-         progress_every, checkpoint_every
+         progress_every, checkpoint_every, frames_format
 
     character(len=:), allocatable :: text
     integer :: pos, line, nkeys
@@ -194,6 +196,7 @@ contains
     piston_every = sc%piston_every; frame_every = sc%frame_every
     distance_every = sc%distance_every; energy_every = sc%energy_every
     progress_every = sc%progress_every; checkpoint_every = sc%checkpoint_every
+    frames_format = sc%frames_format
 
     call read_text(path, text, st)
     if (st%code /= 0) return
@@ -226,6 +229,7 @@ contains
     sc%piston_every = piston_every; sc%frame_every = frame_every
     sc%distance_every = distance_every; sc%energy_every = energy_every
     sc%progress_every = progress_every; sc%checkpoint_every = checkpoint_every
+    sc%frames_format = frames_format
 
   contains
 
@@ -941,6 +945,8 @@ contains
     call ipos('output', 'energy_every', sc%energy_every, 0, huge(1))
     call ipos('output', 'progress_every', sc%progress_every, 0, huge(1))
     call ipos('output', 'checkpoint_every', sc%checkpoint_every, 0, huge(1))
+    call choice('output', 'frames_format', sc%frames_format, &
+         [character(len=name_len) :: 'text', 'binary', 'both'])
     if (sc%energy_every > 0 .and. trim(sc%wall_law) == 'slab') call bad('output', &
          'energy_every', istr(sc%energy_every), 'must be 0 with wall_law = ''slab'' '// &
          '(the slab law has no closed-form potential)')
@@ -1310,6 +1316,7 @@ contains
     call pi_('energy_every', sc%energy_every, '')
     call pi_('progress_every', sc%progress_every, '')
     call pi_('checkpoint_every', sc%checkpoint_every, '')
+    call ps('frames_format', sc%frames_format, 'text: particles.dat, binary: particles.bin, both')
     call emit('/')
   contains
     subroutine emit(line)

@@ -45,3 +45,31 @@ def default_metrics(run: Any) -> dict[str, Any]:
     from pyorch.bed.metrics import summary_metrics
 
     return summary_metrics(run)
+
+
+def frame_spec(run_dir: str | Path, geometry: bool = True) -> Any:
+    """The bed's particle frames for :mod:`pyorch.trajectory`: particles.bin or particles.dat,
+    types = species (1-based), diameters per species [D1], box = the cell (width x height)
+    [D1], lid = the piston height H [D1] nearest to a step (from piston.dat, when written).
+    ``geometry=False``: no scene reading (columns only, for the loaders)."""
+    from pyorch.trajectory import FrameSpec
+
+    names = dict(text="particles.dat", binary="particles.bin", step="step", types="species",
+                 type_offset=1, length_unit="D1", time_unit="T")
+    if not geometry:
+        return FrameSpec(**names)
+    from pyorch import io
+    from pyorch.bed.analyze import run_geometry
+
+    geo = run_geometry(run_dir)
+    diam = tuple(float(geo["diameters"][k]) for k in sorted(geo["diameters"]))
+    lid = None
+    if (Path(run_dir) / "piston.dat").is_file():
+        pis = io.piston(run_dir)
+        steps, h = pis["step"].to_numpy(), pis["H"].to_numpy()
+        if len(steps):
+            def lid(step: int) -> float:
+                return float(h[int(abs(steps - step).argmin())])
+    return FrameSpec(**names, type_names=tuple(f"species{k + 1}" for k in range(len(diam))),
+                     type_diameters=diam, box=(float(geo["width"]), float(geo["height"])),
+                     lid=lid)

@@ -230,7 +230,7 @@ def analyze_run(run_dir: str | Path, *, vectors: bool = True) -> Tables:
                                  if geo["n_species"] > 1 else 1.0}
     summary.update(_summary_piston(pis, md))
     tables: Tables = {}
-    has_frames = (run_dir / "particles.dat").is_file()
+    has_frames = io.has_frames(run_dir)
     fr = io.frames(run_dir) if has_frames else None
     if fr is None or fr.empty:
         _say(f"{run_dir}: no particle frames (particles.dat): structure analysis skipped")
@@ -311,7 +311,7 @@ def plot_run(run_dir: str | Path, out: str | Path | None = None,
     """
     run_dir = Path(run_dir)
     out = Path(out) if out is not None else run_dir / "plots"
-    if not (run_dir / "particles.dat").is_file():
+    if not io.has_frames(run_dir):
         _say(f"{run_dir}: no particles.dat: structure figures skipped")
         return []
     tables = analyze_run(run_dir) if tables is None else tables

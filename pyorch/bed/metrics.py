@@ -22,9 +22,9 @@ def _nearest_row(df: pd.DataFrame, step: int) -> pd.Series:
 def _frame_metrics_near(run: Any, step: int) -> dict[str, float]:
     """n5, n6, n7, Psi6 of the particle frame nearest to ``step`` (NaN without frames)."""
     from pyorch.bed.analysis import frame_metrics
-    from pyorch.io import frame_at
+    from pyorch.io import frame_at, has_frames
 
-    if not (run.dir / "particles.dat").is_file():
+    if not has_frames(run.dir):
         return {}
     frames = run.frames()
     if frames.empty:

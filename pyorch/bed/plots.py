@@ -114,7 +114,7 @@ def save_run_plots(run_dir: str | Path, out: str | Path | None = None) -> list[P
     if (run_dir / "mean_distance.dat").is_file():
         md = io.mean_distance(run_dir)
         save(time_series(md, "D_hat", r"$\hat D$ [$D_1$]", pis), "mean_distance_vs_t.png")
-    if (run_dir / "particles.dat").is_file():
+    if io.has_frames(run_dir):
         import f90nml
 
         nml = f90nml.read(str(run_dir / "scene.nml"))

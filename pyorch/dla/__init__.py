@@ -20,6 +20,7 @@ mass-radius counting from the seed (:mod:`pyorch.dla.fractal`, validated on know
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -29,14 +30,38 @@ from pyorch import io
 from pyorch.dla import fractal
 from pyorch.dla.fractal import Fit
 
-__all__ = ["frames", "history", "aggregate", "events", "frame_at", "mean_free_path",
+__all__ = ["frames", "has_frames", "frame_spec", "history", "aggregate", "events", "frame_at", "mean_free_path",
            "henderson_z", "dimensions", "save_run_plots", "save_growth_movie",
            "write_tables", "METRIC_KEYS", "default_metrics", "fractal"]
 
 
 def frames(run_dir: str | Path) -> pd.DataFrame:
-    """``frames.dat`` (units in ``attrs["units"]``)."""
-    return io.read_dat(Path(run_dir) / "frames.dat")
+    """The frames (long format, units in ``attrs["units"]``): ``frames.bin`` (binary frames)
+    if written, else ``frames.dat``. Frame by frame and lazily:
+    :func:`pyorch.trajectory.open_run`."""
+    from pyorch.trajectory import frames_dataframe
+
+    return frames_dataframe(run_dir, frame_spec(run_dir, geometry=False))
+
+
+def has_frames(run_dir: str | Path) -> bool:
+    """Whether a dla run directory holds frames (text or binary)."""
+    return (Path(run_dir) / "frames.dat").is_file() or (Path(run_dir) / "frames.bin").is_file()
+
+
+def frame_spec(run_dir: str | Path, geometry: bool = True) -> Any:
+    """The dla frames for :mod:`pyorch.trajectory`: frames.bin or frames.dat, types = state
+    (free, stuck, seed), diameters 2 r [L], box lx x ly [L] (from scene.nml unless
+    ``geometry=False``)."""
+    from pyorch.trajectory import FrameSpec
+
+    box = (1.0, 1.0)
+    if geometry:
+        text = (Path(run_dir) / "scene.nml").read_text()
+        box = (_scene_value(text, "lx"), _scene_value(text, "ly"))
+    return FrameSpec(text="frames.dat", binary="frames.bin", step="tick", types="state",
+                     type_offset=0, type_names=("free", "stuck", "seed"), diameter="r",
+                     diameter_scale=2.0, box=box, length_unit="L", time_unit="tau")
 
 
 def history(run_dir: str | Path) -> pd.DataFrame:
@@ -124,7 +149,7 @@ def save_run_plots(run_dir: str | Path, out: str | Path | None = None,
     ly = _scene_value(sc_text, "ly")
     has_agg = (run_dir / "aggregate.dat").is_file()
     fig, ax = plt.subplots(figsize=(6, 6))
-    if (run_dir / "frames.dat").is_file():
+    if has_frames(run_dir):
         last = frame_at(frames(run_dir))
         gas = last[last["state"] == 0]
         _circles(ax, gas["x"].to_numpy(), gas["y"].to_numpy(), gas["r"].to_numpy(), None,
@@ -183,7 +208,7 @@ def save_run_plots(run_dir: str | Path, out: str | Path | None = None,
         fig.savefig(out / "history.png", dpi=110)
         plt.close(fig)
         written.append(out / "history.png")
-    if full and (run_dir / "frames.dat").is_file():
+    if full and has_frames(run_dir):
         written.append(save_growth_movie(run_dir, out / "growth.gif"))
     return written
 
@@ -203,35 +228,11 @@ def write_tables(run_dir: str | Path, out: str | Path | None = None) -> list[Pat
 
 
 def save_growth_movie(run_dir: str | Path, out: str | Path, fps: int = 10) -> Path:
-    """Animated GIF of the frames (gas grey, members coloured by sticking time; Pillow)."""
-    import matplotlib
+    """Movie of the frames (the aggregate growing: disks coloured by state, free / stuck /
+    seed); GIF or MP4 by the suffix of ``out`` (:func:`pyorch.movie.save_movie`)."""
+    from pyorch.movie import save_movie
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from matplotlib.animation import FuncAnimation, PillowWriter
-
-    run_dir = Path(run_dir)
-    fr = frames(run_dir)
-    ticks = np.unique(fr["tick"].to_numpy())
-    sc_text = (run_dir / "scene.nml").read_text()
-    lx, ly = _scene_value(sc_text, "lx"), _scene_value(sc_text, "ly")
-    fig, ax = plt.subplots(figsize=(5, 5))
-
-    def draw(k: int) -> None:
-        ax.clear()
-        f = fr[fr["tick"] == ticks[k]]
-        col = np.where(f["state"].to_numpy() == 0, "0.7", "C3")
-        ax.scatter(f["x"], f["y"], s=4, c=col, linewidths=0)
-        ax.set_xlim(0, lx)
-        ax.set_ylim(0, ly)
-        ax.set_aspect("equal")
-        ax.set_title(f"t = {f['t'].iloc[0]:.2f} tau")
-
-    anim = FuncAnimation(fig, draw, frames=len(ticks))
-    out = Path(out)
-    anim.save(out, writer=PillowWriter(fps=fps))
-    plt.close(fig)
-    return out
+    return save_movie(run_dir, out, fps=fps, color_by="state", progress=False)
 
 
 def _scene_value(text: str, key: str) -> float:

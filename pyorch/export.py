@@ -1,0 +1,119 @@
+"""Export of a run's particle frames for OVITO, freud, MDAnalysis, ASE (any kind with a
+``frame_spec``; frames read by :mod:`pyorch.trajectory` from either form):
+
+- GSD in the HOOMD schema (``gsd`` package): one GSD frame per engine frame with
+  configuration/step, configuration/box = [Lx, Ly, 0, 0, 0, 0] (2D, Lz = 0),
+  configuration/dimensions = 2, particles/N, types, typeid, diameter, position (z = 0) and
+  velocity (z = 0). HOOMD boxes are centred on the origin: positions are shifted by
+  (-Lx/2, -Ly/2). Floats are single precision (the schema's default) unless ``double``.
+- extended XYZ with ASE's conventions: per frame ``N``, then
+  ``Lattice="Lx 0 0 0 Ly 0 0 0 0" Properties=species:S:1:pos:R:3:vel:R:3:id:I:1:``
+  ``type_name:S:1:diameter:R:1 step=.. time=.. pbc="F F F"``, positions in the run's own
+  frame (the box from the origin). ASE wants chemical symbols as species: type k is written
+  as the element of atomic number k + 1 (H, He, Li, ...); its name is ``type_name``.
+
+Units are the kind's (bed: D1, T; dla: L, tau): lengths and velocities as in the frames.
+"""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+
+from pyorch.trajectory import Trajectory, open_run
+
+FORMATS = ("gsd", "xyz")
+
+#: placeholder chemical symbols for type ids 0, 1, 2, ... in extended XYZ (ASE needs symbols)
+SYMBOLS = ("H", "He", "Li", "Be", "B", "C", "N", "O", "F", "Ne", "Na", "Mg", "Al", "Si", "P",
+           "S", "Cl", "Ar")
+
+
+def write_gsd(traj: Trajectory, out: str | Path, double: bool = False) -> Path:
+    """Write every frame of ``traj`` to a HOOMD-schema GSD file ``out``."""
+    import gsd.hoomd
+
+    out = Path(out)
+    lx, ly = traj.spec.box
+    kw = {"precision": "double"} if double else {}
+    with gsd.hoomd.open(str(out), mode="w", **kw) as g:
+        for f in traj:
+            fr = gsd.hoomd.Frame()
+            fr.configuration.step = int(f.step)
+            fr.configuration.dimensions = 2
+            fr.configuration.box = [lx, ly, 0.0, 0.0, 0.0, 0.0]
+            fr.particles.N = f.n
+            fr.particles.types = list(f.types)
+            fr.particles.typeid = f.typeid.astype(np.uint32)
+            fr.particles.diameter = f.diameters
+            pos = np.zeros((f.n, 3))
+            pos[:, 0] = f.positions[:, 0] - 0.5 * lx
+            pos[:, 1] = f.positions[:, 1] - 0.5 * ly
+            vel = np.zeros((f.n, 3))
+            vel[:, :2] = f.velocities
+            fr.particles.position = pos
+            fr.particles.velocity = vel
+            g.append(fr)
+    return out
+
+
+def write_xyz(traj: Trajectory, out: str | Path) -> Path:
+    """Write every frame of ``traj`` as extended XYZ (ASE conventions) to ``out``."""
+    out = Path(out)
+    lx, ly = traj.spec.box
+    if len(traj.spec.type_names) > len(SYMBOLS):
+        raise ValueError(f"extended XYZ: at most {len(SYMBOLS)} types")
+    props = "species:S:1:pos:R:3:vel:R:3:id:I:1:type_name:S:1:diameter:R:1"
+    with open(out, "w", encoding="ascii") as fh:
+        for f in traj:
+            fh.write(f"{f.n}\n")
+            fh.write(f'Lattice="{lx!r} 0.0 0.0 0.0 {ly!r} 0.0 0.0 0.0 0.0" Properties={props} '
+                     f'step={f.step} time={f.time!r} pbc="F F F"\n')
+            sym = np.asarray(SYMBOLS)[f.typeid]
+            name = np.asarray(f.types)[f.typeid]
+            rows = [f"{s} {x!r} {y!r} 0.0 {vx!r} {vy!r} 0.0 {i} {t} {d!r}\n"
+                    for s, x, y, vx, vy, i, t, d in zip(
+                        sym, f.positions[:, 0].tolist(), f.positions[:, 1].tolist(),
+                        f.velocities[:, 0].tolist(), f.velocities[:, 1].tolist(),
+                        f.ids.tolist(), name, f.diameters.tolist())]
+            fh.writelines(rows)
+    return out
+
+
+def export(run_dir: str | Path, fmt: str, out: str | Path | None = None,
+           double: bool = False) -> Path:
+    """Export the frames of ``run_dir`` as ``fmt`` ('gsd' | 'xyz') to ``out`` (default
+    RUN_DIR/frames.gsd or RUN_DIR/frames.xyz); returns the path written."""
+    from pyorch import SceneError
+
+    if fmt not in FORMATS:
+        raise SceneError(f"--format {fmt!r}: allowed {' | '.join(FORMATS)}")
+    run_dir = Path(run_dir)
+    out = Path(out) if out is not None else run_dir / f"frames.{fmt}"
+    with open_run(run_dir) as traj:
+        tmp = out.with_name(out.name + ".part")
+        try:
+            if fmt == "gsd":
+                write_gsd(traj, tmp, double=double)
+            else:
+                write_xyz(traj, tmp)
+            tmp.replace(out)   # nothing half-written under the final name
+        finally:
+            tmp.unlink(missing_ok=True)
+    return out
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    """``pyorch export RUN_DIR --format gsd|xyz [-o FILE] [--double]``."""
+    e = sub.add_parser("export", help="particle frames as GSD (HOOMD schema) or extended XYZ")
+    e.add_argument("run_dir", type=Path)
+    e.add_argument("--format", dest="fmt", required=True, choices=FORMATS)
+    e.add_argument("-o", "--out", type=Path, default=None,
+                   help="output file (default RUN_DIR/frames.gsd|frames.xyz)")
+    e.add_argument("--double", action="store_true", help="GSD: float64 (default float32)")
+
+
+def cmd_export(args: argparse.Namespace) -> int:
+    print(export(args.run_dir, args.fmt, args.out, double=args.double))
+    return 0
