@@ -391,14 +391,16 @@ def gns_types(engine_types: NDArray[np.int64], type_map: Mapping[int, int],
 # The worker task
 # --------------------------------------------------------------------------------------------------
 def extract(run_dir: str | Path) -> dict[str, Any]:
-    """Write ``<run_dir>/gns_trajectory.npz`` from frames.dat (positions cast to float32, engine
-    types, frame times and steps, box side) unless an up-to-date one exists; returns frames,
-    particles and whether it was written ("written" | "cached")."""
+    """Write ``<run_dir>/gns_trajectory.npz`` from the frames (frames.bin if written, else
+    frames.dat): positions cast to float32, engine types, frame times and steps, box side;
+    unless an up-to-date one exists. Returns frames, particles and whether it was written
+    ("written" | "cached")."""
     from pyorch import lj
+    from pyorch.trajectory import frames_path
 
     run_dir = Path(run_dir)
     target = run_dir / TRAJECTORY_FILE
-    src = run_dir / "frames.dat"
+    src = frames_path(run_dir, lj.frame_spec(run_dir, geometry=False))
     if target.is_file() and target.stat().st_mtime_ns >= src.stat().st_mtime_ns:
         with np.load(target) as f:
             shape = f["positions"].shape
@@ -499,7 +501,7 @@ def assemble(spec: DatasetSpec, results: pd.DataFrame | None = None) -> dict[str
             pos, etypes, t, box_l = f["positions"], f["types"], f["t"], float(f["box_l"])
         dts = np.diff(t)
         if dts.size == 0 or np.ptp(dts) > DT_RTOL * abs(dts.mean()):
-            raise RunError(f"{run_dir}/frames.dat: frames are not evenly spaced in time "
+            raise RunError(f"{run_dir}: frames are not evenly spaced in time "
                            f"(dt from {dts.min()} to {dts.max()} T)", code=3)
         e.update(frames=int(pos.shape[0]), particles=int(pos.shape[1]))
         common["l"].add(box_l)

@@ -6,7 +6,6 @@ from __future__ import annotations
 import importlib.util
 import json
 import math
-import os
 import shutil
 import subprocess
 import sys
@@ -27,6 +26,13 @@ _spec.loader.exec_module(synth)  # type: ignore[union-attr]
 
 
 # ----------------------------------------------------------------------------- helpers
+def _pyorch(cwd: Path, *args: str) -> subprocess.CompletedProcess[str]:
+    """The command line, run outside the source tree (so that the installed package, with its
+    compiled engine, is the one imported)."""
+    return subprocess.run([sys.executable, "-m", "pyorch", *args], capture_output=True,
+                          text=True, cwd=cwd, timeout=300)
+
+
 def _stub_spec(tmp: Path, n_points: int, fractions=None, seed: int = 0, **kw) -> gns.DatasetSpec:
     """A DatasetSpec over synthetic run directories (no engine): the sweep is a stand-in that
     only lists the points."""
@@ -310,13 +316,12 @@ def test_types_are_mapped_and_type_3_refused(tmp_path: Path) -> None:
 
 def test_cli_check(dataset) -> None:
     spec, _ = dataset
-    env = {**os.environ, "PYTHONWARNINGS": "ignore"}
-    cmd = [sys.executable, "-m", "pyorch", "dataset", "check", str(spec.out)]
-    ok = subprocess.run(cmd, capture_output=True, text=True, env=env)
+    cmd = ["dataset", "check", str(spec.out)]
+    ok = _pyorch(spec.out.parent, *cmd)
     assert ok.returncode == 0, ok.stderr
     assert "ok: train 6, valid 2, test 2 trajectories of 10 frames" in ok.stdout
     _break(spec.out, "train", lambda p, t: (p, np.full_like(t, 3)))
-    bad = subprocess.run(cmd, capture_output=True, text=True, env=env)
+    bad = _pyorch(spec.out.parent, *cmd)
     assert bad.returncode == 4
     assert "particle_type 3" in bad.stderr and "Traceback" not in bad.stderr
 
@@ -394,6 +399,23 @@ def test_generated_dataset_equals_the_engine_frames_and_resumes(client, tmp_path
     assert (spec.out / "metadata.json").read_text() == md
 
 
+def test_binary_frames_give_the_same_dataset(client, tmp_path: Path) -> None:
+    """frames_format = 'both': the dataset is read from frames.bin and equals the float32 cast of
+    the text frames of the same runs, bit for bit."""
+    path = _spec_file(tmp_path, **{"seeds = 5": "seeds = 3",
+                                   '"output.checkpoint_every" = 0':
+                                   '"output.checkpoint_every" = 0\n"output.frames_format" = "both"'})
+    spec = gns.DatasetSpec.from_toml(path)
+    _, prov = gns.generate(spec, client=client, progress=False)
+    ds = gns.load(spec.out)
+    for e in prov["trajectories"]:
+        assert (Path(e["dir"]) / "frames.bin").is_file()
+        rows = [ln.split() for ln in Path(e["dir"], "frames.dat").read_text().splitlines()
+                if not ln.startswith("#")]
+        xy = np.array([[float(r[4]), float(r[5])] for r in rows]).reshape(21, 30, 2)
+        assert ds.splits[e["split"]][e["key"]][0].tobytes() == xy.astype(np.float32).tobytes()
+
+
 def test_a_failed_trajectory_is_isolated(client, tmp_path: Path) -> None:
     """gamma = 0 is refused by the engine: those points are listed as failed, the dataset holds
     the others with the split the spec gave them; the command exits 3."""
@@ -419,8 +441,7 @@ def test_a_failed_trajectory_is_isolated(client, tmp_path: Path) -> None:
         assert sorted(ds.splits[s]) == sorted(f"simulation_trajectory_{i}" for i in
                                               pts["index"][(pts["split"] == s) &
                                                            (pts["walls.gamma"] == 1.0)])
-    cli = subprocess.run([sys.executable, "-m", "pyorch", "dataset", "gns", str(path),
-                          "--workers", "2", "--no-progress"], capture_output=True, text=True)
+    cli = _pyorch(tmp_path, "dataset", "gns", str(path), "--workers", "2", "--no-progress")
     assert cli.returncode == 3, cli.stderr
     assert "4/8 trajectories" in cli.stdout and "0 run now" in cli.stdout
 
@@ -442,8 +463,7 @@ def test_bad_specs_are_refused_before_anything_runs(tmp_path: Path, replace, mes
     with pytest.raises(SceneError, match=message):
         gns.DatasetSpec.from_toml(path).check()
     assert not (tmp_path / "ds").exists()
-    cli = subprocess.run([sys.executable, "-m", "pyorch", "dataset", "gns", str(path)],
-                         capture_output=True, text=True)
+    cli = _pyorch(tmp_path, "dataset", "gns", str(path))
     assert cli.returncode == 2 and "Traceback" not in cli.stderr
 
 
@@ -457,8 +477,7 @@ def test_other_kinds_are_refused(tmp_path: Path) -> None:
 
 
 def test_dry_run_lists_the_split(tmp_path: Path) -> None:
-    cli = subprocess.run([sys.executable, "-m", "pyorch", "dataset", "gns",
-                          str(_spec_file(tmp_path)), "--dry-run"], capture_output=True, text=True)
+    cli = _pyorch(tmp_path, "dataset", "gns", str(_spec_file(tmp_path)), "--dry-run")
     assert cli.returncode == 0, cli.stderr
     assert "10 trajectories of 21 frames, box 20.0 a, frame dt 0.1 T" in cli.stdout
     assert cli.stdout.count("train") == 6 and cli.stdout.count("valid") == 2

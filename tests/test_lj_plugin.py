@@ -49,17 +49,33 @@ def test_positions_are_the_frames_in_particle_order(run: Path) -> None:
                                             "wall_hits", "r_min"]
 
 
-def test_broken_frames_are_refused(run: Path) -> None:
+def test_broken_frames(run: Path) -> None:
+    """A torn last frame is dropped (as pyorch.trajectory and a resume do); rows out of id order
+    or a particle changing type are refused."""
     path = run / "frames.dat"
     lines = path.read_text().splitlines(keepends=True)
     path.write_text("".join(lines[:-1]))
-    with pytest.raises(RunError, match="not whole frames of 7 particles") as exc:
-        lj.trajectory(run)
-    assert exc.value.code == 4
+    assert lj.positions(run).shape == (8, 7, 2)
     swapped = lines[:2] + [lines[3], lines[2]] + lines[4:]
     path.write_text("".join(swapped))
-    with pytest.raises(RunError, match="ids 1..7 in order"):
+    with pytest.raises(RunError, match="ids 1..7 in order") as exc:
         lj.trajectory(run)
+    assert exc.value.code == 4
+    last = lines[-1].split()
+    last[3] = "4"  # the type column of particle 7 in the last frame
+    path.write_text("".join(lines[:-1]) + " ".join(last) + "\n")
+    with pytest.raises(RunError, match="changed type"):
+        lj.trajectory(run)
+
+
+def test_frame_spec_serves_pyorch_trajectory(run: Path) -> None:
+    from pyorch.trajectory import open_run
+
+    with open_run(run) as tr:
+        f = tr[3]
+        assert f.box == (20.0, 20.0) and f.types[f.typeid[4]] == "type2"
+        assert np.array_equal(f.positions, lj.positions(run)[3])
+        assert np.array_equal(f.diameters, np.full(7, 2.0))
 
 
 # ----------------------------------------------------------------------------- Maxwell
@@ -148,6 +164,27 @@ def test_engine_run_loads_and_starts_maxwellian(tmp_path: Path) -> None:
     assert tab["kT"].iloc[0] == pytest.approx(0.8, rel=0.1)
     assert ((tr.pos > 0) & (tr.pos < 120.0)).all()
     res = subprocess.run([sys.executable, "-m", "pyorch", "plot", str(out)],
-                         capture_output=True, text=True)
+                         capture_output=True, text=True, cwd=tmp_path)
     assert res.returncode == 0, res.stderr
     assert "trajectories.png" in res.stdout and "energy.png" in res.stdout
+
+
+def test_engine_field_arrows(tmp_path: Path) -> None:
+    """field.dat of a time-dependent field (the demo's travelling wave) has a snapshot per
+    frame, of a static one (omega = 0) one: the figure shows 4 resp. 1 of them."""
+    from pyorch.run import run as prun
+
+    small = {"particles.n": 20, "box.l": 20.0, "integration.steps": 400,
+             "output.frame_every": 100, "output.energy_every": 100,
+             "output.checkpoint_every": 0, "output.field_grid": 5}
+    moving, still = tmp_path / "moving", tmp_path / "still"
+    prun(ROOT / "runs" / "lj_demo.nml", moving, progress=False, overrides=small)
+    prun(ROOT / "runs" / "lj_demo.nml", still, progress=False,
+         overrides={**small, "field.type": "standing_wave", "field.omega": 0.0})
+    fd = lj.field(moving)
+    assert sorted(set(fd["step"])) == [0, 100, 200, 300, 400] and len(fd) == 5 * 25
+    snaps = lj.field_arrows(fd)
+    assert [int(s["step"].iloc[0]) for s in snaps] == [0, 100, 300, 400]
+    assert len(lj.field_arrows(lj.field(still))) == 1
+    for d in (moving, still):
+        assert "field.png" in [p.name for p in lj.save_run_plots(d)]

@@ -8,7 +8,9 @@ dv/dt = -(9/2) alpha v + F_ext(x, t) + F_steric.
 Files of a run directory (two header lines, as every .dat):
 
 - ``frames.dat``: step, t [T], id, type, x, y [a], vx, vy [a/T] (long format, one row per
-  particle per frame, ids 1..n in order, positions with 17 significant digits);
+  particle per frame, ids 1..n in order, positions with 17 significant digits), or the same
+  columns in ``frames.bin`` (``&output frames_format = 'binary'``; read first when both exist:
+  :mod:`pyorch.trajectory`);
 - ``energy.dat``: step, t [T], e_kin, u_pair, u_field [m g a], wall_hits (cumulative), r_min [a];
 - ``field.dat`` (when the engine writes it): step, t [T], x, y [a], fx, fy [m g], the external
   field on a grid, the values the arrows of ``plots/field.png`` show (never re-computed here).
@@ -30,19 +32,38 @@ from numpy.typing import ArrayLike, NDArray
 
 from pyorch import RunError, io
 
-__all__ = ["frames", "energy", "field", "field_arrows", "Trajectory", "trajectory_of", "trajectory", "positions", "box_side",
-           "scene", "maxwell_speed_pdf", "speed_table", "save_run_plots", "write_tables",
-           "METRIC_KEYS", "default_metrics"]
+__all__ = ["frames", "frame_spec", "has_frames", "energy", "field", "field_arrows", "Trajectory",
+           "trajectory", "positions", "box_side", "scene", "maxwell_speed_pdf", "speed_table",
+           "save_run_plots", "write_tables", "METRIC_KEYS", "default_metrics"]
 
 F64 = NDArray[np.float64]
 
 
 # ----------------------------------------------------------------------------- loaders
+#: gns' particle types are 0..8; the engine writes &particles type_id (3 refused)
+TYPE_NAMES = tuple(f"type{i}" for i in range(9))
+
+
+def frame_spec(run_dir: str | Path, geometry: bool = True) -> Any:
+    """The lj_box frames for :mod:`pyorch.trajectory` (``pyorch export``, ``pyorch movie``):
+    frames.bin or frames.dat, types = the ``type`` column (0-based, names type0..type8),
+    diameter 2 a, box L x L [a] (from scene.nml unless ``geometry=False``)."""
+    from pyorch.trajectory import FrameSpec
+
+    side = box_side(run_dir) if geometry else 1.0
+    return FrameSpec(text="frames.dat", binary="frames.bin", step="step", types="type",
+                     type_offset=0, type_names=TYPE_NAMES, type_diameters=(2.0,) * 9,
+                     box=(side, side), length_unit="a", time_unit="T")
+
+
 def frames(run_dir: str | Path) -> pd.DataFrame:
-    """``frames.dat``: step, t [T], id, type, x, y [a], vx, vy [a/T] (units in attrs)."""
-    df = io.read_dat(Path(run_dir) / "frames.dat")
-    if "type" in df.columns:
-        df["type"] = df["type"].astype(np.int64)
+    """The frames in long format: step, t [T], id, type, x, y [a], vx, vy [a/T] (units in
+    attrs), from frames.bin if written, else frames.dat."""
+    from pyorch.trajectory import frames_dataframe
+
+    df = frames_dataframe(run_dir, frame_spec(run_dir, geometry=False))
+    for c in ("id", "type"):
+        df[c] = df[c].astype(np.int64)
     return df
 
 
@@ -88,41 +109,41 @@ class Trajectory:
         return int(self.pos.shape[1])
 
 
-def trajectory_of(df: pd.DataFrame, where: str = "frames.dat") -> Trajectory:
-    """Arrays of a long-format frames table; RunError (code 4) unless every frame holds the same
-    ids 1..N in order with one type per particle."""
-    steps = df["step"].to_numpy()
-    n_rows = len(df)
-    if n_rows == 0:
-        raise RunError(f"{where}: no frames", code=4)
-    first = int(np.searchsorted(steps, steps[0], side="right"))  # rows of the first frame
-    if n_rows % first:
-        raise RunError(f"{where}: {n_rows} rows are not whole frames of {first} particles "
-                       f"(torn or inconsistent file)", code=4)
-    n_frames = n_rows // first
-    ids = df["id"].to_numpy().reshape(n_frames, first)
-    if not (ids == np.arange(1, first + 1)).all():
-        raise RunError(f"{where}: every frame must list ids 1..{first} in order", code=4)
-    st = steps.reshape(n_frames, first)
-    if not (st == st[:, :1]).all() or not (np.diff(st[:, 0]) > 0).all():
-        raise RunError(f"{where}: frames must have one step each, increasing", code=4)
-    types = df["type"].to_numpy().astype(np.int64).reshape(n_frames, first)
-    if not (types == types[0]).all():
-        raise RunError(f"{where}: a particle changed type between frames", code=4)
-    pos = df[["x", "y"]].to_numpy(dtype=np.float64).reshape(n_frames, first, 2)
-    vel = df[["vx", "vy"]].to_numpy(dtype=np.float64).reshape(n_frames, first, 2)
-    t = df["t"].to_numpy(dtype=np.float64).reshape(n_frames, first)[:, 0]
-    return Trajectory(st[:, 0].astype(np.int64), t, types[0].copy(), pos, vel)
-
-
 def trajectory(run_dir: str | Path) -> Trajectory:
-    """The frames of a run directory as arrays (see :class:`Trajectory`)."""
-    path = Path(run_dir) / "frames.dat"
-    return trajectory_of(frames(run_dir), str(path))
+    """The frames of a run directory as arrays (see :class:`Trajectory`), from frames.bin if
+    written, else frames.dat (:mod:`pyorch.trajectory`; a torn last text frame is dropped as a
+    resume would cut it). RunError (code 4) unless every frame lists ids 1..N in order, steps
+    increase and no particle changes type."""
+    from pyorch.trajectory import Trajectory as Frames, frames_path
+
+    spec = frame_spec(run_dir, geometry=False)
+    path = frames_path(run_dir, spec)
+    with Frames(path, spec) as fr:
+        if len(fr) == 0:
+            raise RunError(f"{path}: no frames", code=4)
+        ids = np.asarray(fr.column("id"))
+        steps = fr.steps
+        types = np.asarray(fr.column("type"), dtype=np.int64)
+        pos = np.stack([fr.column("x"), fr.column("y")], axis=-1).astype(np.float64)
+        vel = np.stack([fr.column("vx"), fr.column("vy")], axis=-1).astype(np.float64)
+        t = fr.times.copy()
+    if not (ids == np.arange(1, ids.shape[1] + 1)).all():
+        raise RunError(f"{path}: every frame must list ids 1..{ids.shape[1]} in order", code=4)
+    if not (np.diff(steps) > 0).all():
+        raise RunError(f"{path}: frame steps must increase", code=4)
+    if not (types == types[0]).all():
+        raise RunError(f"{path}: a particle changed type between frames", code=4)
+    return Trajectory(steps.copy(), t, types[0].copy(), pos, vel)
+
+
+def has_frames(run_dir: str | Path) -> bool:
+    """Whether a run directory holds frames (frames.dat or frames.bin)."""
+    return any((Path(run_dir) / n).is_file() for n in ("frames.dat", "frames.bin"))
 
 
 def positions(run_dir: str | Path) -> F64:
-    """Positions [a] of every frame, shape (frames, N, 2), float64 as written (17 digits)."""
+    """Positions [a] of every frame, shape (frames, N, 2), float64 as the engine wrote them
+    (binary, or text with 17 digits: the same numbers)."""
     return trajectory(run_dir).pos
 
 
@@ -292,7 +313,7 @@ def save_run_plots(run_dir: str | Path, out: str | Path | None = None,
     out.mkdir(parents=True, exist_ok=True)
     side = box_side(run_dir)
     written: list[Path] = []
-    if (run_dir / "frames.dat").is_file():
+    if has_frames(run_dir):
         tr = trajectory(run_dir)
         written.append(_plot_trajectories(tr, side, out / "trajectories.png"))
         sp = _plot_speeds(tr, speed_table(tr), out / "speeds.png")
@@ -312,7 +333,7 @@ def write_tables(run_dir: str | Path, out: str | Path | None = None) -> list[Pat
     run_dir = Path(run_dir)
     out = Path(out) if out is not None else run_dir / "analysis"
     out.mkdir(parents=True, exist_ok=True)
-    if not (run_dir / "frames.dat").is_file():
+    if not has_frames(run_dir):
         return []
     path = out / "speeds.csv"
     speed_table(trajectory(run_dir)).to_csv(path, index=False)
@@ -338,7 +359,7 @@ def default_metrics(run: object) -> dict[str, float]:
         res.update(e_total_initial=float(total[0]), e_total_final=float(total[-1]),
                    e_kin_final=float(en["e_kin"].iloc[-1]),
                    wall_hits=float(en["wall_hits"].iloc[-1]), r_min=float(en["r_min"].min()))
-    if (run_dir / "frames.dat").is_file():
+    if has_frames(run_dir):
         last = speed_table(trajectory(run_dir)).iloc[-1]
         res.update(kT_final=float(last["kT"]), ks_maxwell_final=float(last["ks"]))
     return res
