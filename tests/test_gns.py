@@ -488,3 +488,53 @@ def test_example_specs_check() -> None:
     for path in sorted((ROOT / "runs" / "datasets").glob("*.toml")):
         common = gns.DatasetSpec.from_toml(path).check()
         assert common["frames"] >= gns.MIN_FRAMES
+
+
+def test_statistics_of_a_uniform_field_are_per_frame(client, tmp_path: Path) -> None:
+    """End to end, physics: particles from rest in a uniform field F, no pairs, no drag, no wall
+    hit. Semi-implicit Euler with k steps of dt per frame gives the frame second difference
+    (k dt)^2 F exactly, so acc_mean = F (k dt)^2 = 0.01 F and acc_std ~ 0 (float32 rounding);
+    the frame differences from rest (velocity updated first) are (k dt)^2 F (2m - 1 + 1/k) / 2,
+    m = 1..10: mean (k dt)^2 F (10 + 1/k) / 2, std (k dt)^2 |F| std(m). Divided by dt (the
+    trap), the numbers would be 10x and 100x larger."""
+    f = np.array([0.3, -0.5])
+    text = f'''
+base = "{DEMO}"
+out = "{tmp_path / 'ds'}"
+seeds = 5
+[set]
+"box.l" = 40.0
+"particles.n" = 10
+"particles.velocities" = "zero"
+"steric.law" = "none"
+"physics.alpha" = 0.0
+"field.type" = "uniform"
+"field.f0x" = {f[0]}
+"field.f0y" = {f[1]}
+"integration.dt" = 1.0e-3
+"integration.steps" = 1000
+"output.frame_every" = 100
+"output.checkpoint_every" = 0
+[split]
+train = 0.6
+valid = 0.2
+test = 0.2
+[gns]
+connectivity_radius = 10.0
+'''
+    path = tmp_path / "uniform.toml"
+    path.write_text(text)
+    spec = gns.DatasetSpec.from_toml(path)
+    _, prov = gns.generate(spec, client=client, progress=False)
+    from pyorch import lj
+
+    for e in prov["trajectories"]:
+        assert lj.energy(e["dir"])["wall_hits"].iloc[-1] == 0  # the premise
+    md = gns.load(spec.out).metadata
+    kdt2 = (100 * 1.0e-3) ** 2
+    np.testing.assert_allclose(md["acc_mean"], f * kdt2, rtol=1e-4)
+    assert max(md["acc_std"]) < 1e-5  # float32 rounding of positions < 40 a: ~1e-6
+    np.testing.assert_allclose(md["vel_mean"], f * kdt2 * (10 + 1 / 100) / 2, rtol=1e-5)
+    np.testing.assert_allclose(md["vel_std"], np.abs(f) * kdt2 * np.arange(1, 11).std(),
+                               rtol=1e-5)
+    assert md["dt"] == pytest.approx(0.1, rel=1e-12)
