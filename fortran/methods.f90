@@ -8,12 +8,13 @@ module methods
   use oscillator, only: oscillator_t
   use edmd_dla, only: dla_t
   use dsmc_rods, only: rods_t
+  use lj_box, only: lj_box_t
   implicit none
   private
 
   public :: method_for_scene, kind_names
 
-  character(len=*), parameter :: kind_names = "'magnet_bed' | 'oscillator' | 'dla' | 'rods'"
+  character(len=*), parameter :: kind_names = "'magnet_bed' | 'oscillator' | 'dla' | 'rods' | 'lj_box'"
 
 contains
 
@@ -34,6 +35,8 @@ contains
       allocate(dla_t :: m)
     case ('rods')
       allocate(rods_t :: m)
+    case ('lj_box')
+      allocate(lj_box_t :: m)
     case default
       call set_error(st, exit_bad_input, trim(path)//": &scene kind = '"//trim(kind)// &
            "': allowed "//kind_names)

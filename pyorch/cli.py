@@ -8,6 +8,8 @@
     pyorch analyze RUN_DIR [--out DIR]
     pyorch bench trade|bias|seeds [--scene S] [--seeds N] [--quick] [--workers W] [--out DIR]
     pyorch sweep SWEEP.toml [--workers N] [--scheduler ADDR] [--cluster local|slurm]
+    pyorch dataset gns SPEC.toml [--workers N] [--scheduler ADDR] [--dry-run]
+    pyorch dataset check DATASET_DIR
     pyorch export RUN_DIR --format gsd|xyz [-o FILE] [--double]
     pyorch movie RUN_DIR [--fps F] [--every K] [--color-by C] [--out FILE.mp4|.gif]
 """
@@ -54,6 +56,10 @@ def _parser() -> argparse.ArgumentParser:
     from pyorch.sweep import add_parser as add_sweep_parser
 
     add_sweep_parser(sub)
+
+    from pyorch.gns import add_parser as add_dataset_parser
+
+    add_dataset_parser(sub)
 
     from pyorch.export import add_parser as add_export_parser
     from pyorch.movie import add_parser as add_movie_parser
@@ -103,6 +109,10 @@ def _main(args: argparse.Namespace) -> int:
             from pyorch.sweep import cmd_sweep
 
             return cmd_sweep(args)
+        if args.cmd == "dataset":
+            from pyorch.gns import cmd_dataset
+
+            return cmd_dataset(args)
         if args.cmd == "export":
             from pyorch.export import cmd_export
 

@@ -49,6 +49,13 @@ KINDS: dict[str, Kind] = {
         "rods", "dsmc", ("scene", "rods", "collisions", "mean_field", "output"),
         "mass m (a sample's), length L (a rod's), time t0 of the scene; energies m L^2/t0^2",
         "pyorch.rods", "space-homogeneous DSMC of rods of vanishing girth (seed 001)"),
+    "lj_box": Kind(
+        "lj_box", "md",
+        ("scene", "box", "particles", "steric", "physics", "field", "walls", "integration",
+         "output"),
+        "length a (particle radius), time T = sqrt(a/g), mass m (all 1), force m g, "
+        "energy m g a",
+        "pyorch.lj", "Lennard-Jones particles in a 2D box, trajectories for GNS (seed 000)"),
 }
 
 _KIND_RE = re.compile(r"""^\s*kind\s*=\s*['"]([^'"]*)['"]""", re.I | re.M)

@@ -113,6 +113,23 @@ def resolve_metrics(spec: str) -> MetricFn:
         return getattr(importlib.import_module(module), name)
     except (ImportError, AttributeError) as exc:
         raise SceneError(f"metrics = {spec!r}: {exc}") from exc
+
+
+def read_spec(path: Path, allowed: Iterable[str], what: str) -> tuple[dict[str, Any], str]:
+    """A TOML spec with a 'base' and only ``allowed`` top-level keys, and its text; SceneError
+    naming the file otherwise."""
+    try:
+        text = path.read_text(encoding="utf-8")
+        spec = tomllib.loads(text)
+    except (OSError, tomllib.TOMLDecodeError) as exc:
+        raise SceneError(f"{path}: cannot read {what}: {exc}") from exc
+    unknown = set(spec) - set(allowed)
+    if unknown or "base" not in spec:
+        raise SceneError(f"{path}: needs 'base'; unknown keys {sorted(unknown)} "
+                         f"(allowed: {', '.join(sorted(allowed))})")
+    return spec, text
+
+
 _KEY = re.compile(r"^[a-z_][a-z0-9_]*\.[a-z_][a-z0-9_]*$")
 _UNSAFE = re.compile(r"[^A-Za-z0-9._+=,-]+")
 _NAME_MAX = 100  # characters of the readable part of a point name
@@ -393,14 +410,7 @@ class Sweep:
     def from_toml(cls, path: str | Path) -> "Sweep":
         """Read a sweep spec (see the module docstring); paths relative to the file."""
         path = Path(path)
-        try:
-            spec = tomllib.loads(path.read_text(encoding="utf-8"))
-        except (OSError, tomllib.TOMLDecodeError) as exc:
-            raise SceneError(f"{path}: cannot read sweep spec: {exc}") from exc
-        unknown = set(spec) - _TOML_KEYS
-        if unknown or "base" not in spec:
-            raise SceneError(f"{path}: needs 'base'; unknown keys {sorted(unknown)} "
-                             f"(allowed: {', '.join(sorted(_TOML_KEYS))})")
+        spec, _ = read_spec(path, _TOML_KEYS, "sweep spec")
         here = path.absolute().parent
         out = here / spec["out"] if "out" in spec else None
         sweep = cls(here / spec["base"], grid=_flatten(spec.get("grid", {})),
@@ -670,15 +680,21 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     [--no-progress] [--dry-run]`` to an argparse subparsers object."""
     p = subparsers.add_parser("sweep", help="run a parameter sweep (TOML spec) on dask")
     p.add_argument("spec", type=Path, help="sweep spec (TOML), see runs/sweeps/README.md")
+    add_cluster_arguments(p)
+    p.add_argument("--dry-run", action="store_true", help="write the manifest and list the points")
+    p.set_defaults(func=cmd_sweep)
+    return p
+
+
+def add_cluster_arguments(p: argparse.ArgumentParser) -> None:
+    """``--scheduler ADDR --workers N --cluster local|slurm --no-progress`` (every command that
+    runs points on dask: ``pyorch sweep``, ``pyorch dataset gns``)."""
     p.add_argument("--scheduler", default=None, metavar="ADDR",
                    help="join a running dask scheduler, e.g. tcp://host:8786")
     p.add_argument("--workers", type=int, default=None, metavar="N",
                    help="workers to start (default: usable cores; slurm: min(points, 32))")
     p.add_argument("--cluster", choices=["local", "slurm"], default="local")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    p.add_argument("--dry-run", action="store_true", help="write the manifest and list the points")
-    p.set_defaults(func=cmd_sweep)
-    return p
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:

@@ -143,7 +143,7 @@ def test_nan_in_the_file_names_the_key(tmp_path: Path) -> None:
 
 def test_unknown_kind_refused(tmp_path: Path) -> None:
     path = tmp_path / "k.nml"
-    path.write_text("&scene\n  kind = 'lj_box'\n/\n")
+    path.write_text("&scene\n  kind = 'granular_gas'\n/\n")
     p = subprocess.run([str(engine_executable()), str(path), "--out", str(tmp_path / "o")],
                        capture_output=True, text=True)
     assert p.returncode == 2

@@ -10,7 +10,7 @@ module scene_input
   private
 
   public :: kind_len, read_kind, read_text, max_scene_bytes, open_scene, group_status, &
-       printable, lower_case, check_real, check_int, check_choice, &
+       printable, lower_case, check_real, check_int, check_choice, choice_index, &
        put_real, put_int, put_str, put_logical, quoted, real_str, int_str
 
   integer, parameter :: kind_len = 32
@@ -259,6 +259,17 @@ contains
     call set_error(st, exit_bad_input, trim(path)//': &'//group//' '//key//' = '// &
          quoted(trim(v))//': allowed '//adjustl(list))
   end subroutine check_choice
+
+  !> Position of v in allowed (1-based, compared trimmed; 0 when absent): a checked choice
+  !> (check_choice) mapped to the method's code.
+  pure integer function choice_index(v, allowed) result(k)
+    character(len=*), intent(in) :: v
+    character(len=*), intent(in) :: allowed(:)
+    do k = 1, size(allowed)
+      if (trim(allowed(k)) == trim(v)) return
+    end do
+    k = 0
+  end function choice_index
 
   !> Fortran string literal of s: quotes doubled, so any text round-trips.
   function quoted(s) result(r)

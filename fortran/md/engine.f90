@@ -10,10 +10,8 @@ module engine
   use protocol, only: protocol_t, protocol_build, piston_at, phase_names
   use initial, only: place_particles
   use pair_forces, only: pair_forces_all, pair_forces_list, pair_forces_far, pair_energy_all
-  use state, only: state_permute
   use parallel, only: init_threads, par_min_loop
-  use neighbours, only: nlist_t, nlist_setup, nlist_due, nlist_bin, nlist_build, &
-       nb_all_pairs, nb_cells
+  use neighbours, only: nlist_t, nlist_setup, nlist_refresh, nb_all_pairs
   use walls, only: wall_forces, wall_energy
   use friction, only: gravity_force, viscous_friction, dry_friction
   use integrators, only: estimate_velocity, finish_velocity, advance
@@ -196,15 +194,7 @@ contains
         nl%evaluated = nl%evaluated + int(s%n, i8)*int(s%n - 1, i8)/2
         return
       end if
-      if (nlist_due(nl, s%n, s%x, s%y)) then
-        call nlist_bin(nl, s%n, s%x, s%y)
-        if (nl%strategy /= nb_cells) then
-          ! re-sort the particles by cell for memory locality, then bin again
-          call state_permute(s, nl%cell_part)
-          call nlist_bin(nl, s%n, s%x, s%y)
-        end if
-        call nlist_build(nl, s%n, s%x, s%y)
-      end if
+      call nlist_refresh(nl, s)
       call pair_forces_list(s%n, s%x, s%y, s%mu, s%wsin, m%k_pair, m%r_cut**2, m%shift4, &
            nl%check, r3, nl%start, nl%nbr, s%fx, s%fy, s%s3, r2min)
       nl%evaluated = nl%evaluated + nl%pairs

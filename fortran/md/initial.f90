@@ -10,7 +10,7 @@ module initial
   implicit none
   private
 
-  public :: place_particles, species_of
+  public :: place_particles, species_of, seed_rng
 
   real(dp), parameter :: margin = 1.0_dp   !< clearance from walls and piston [D1]
 

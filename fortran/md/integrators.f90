@@ -8,13 +8,15 @@
 !> Velocity Verlet (leapfrog form): v_{n+1/2} = v_{n-1/2} + h a_n,
 !>   x_{n+1} = x_n + h v_{n+1/2}, v_n = v_{n-1/2} + h a_n/2.
 !> Explicit Euler (seed 000): x_{n+1} = x_n + h v_n, v_{n+1} = v_n + h a_n.
+!> Semi-implicit (symplectic) Euler: v_{n+1} = v_n + h a_n, x_{n+1} = x_n + h v_{n+1};
+!>   hence x_{n+1} - 2 x_n + x_{n-1} = h^2 a_n exactly (what a GNS learns from frames).
 !> Velocity-dependent forces (friction) use v_n ~ v_{n-1/2} + h a_{n-1}/2,
 !> which makes the Verlet schemes first order in v for those forces only.
 module integrators
   use kinds, only: dp
   use parallel, only: par_min_loop
   use state, only: state_t
-  use model, only: int_stormer_verlet, int_velocity_verlet, int_euler
+  use model, only: int_stormer_verlet, int_velocity_verlet, int_euler, int_semi_euler
   implicit none
   private
 
@@ -109,6 +111,13 @@ contains
         s%y(i) = s%y(i) + h*s%vy(i)
         s%vx(i) = s%vx(i) + h*s%fx(i)/s%mass(i)
         s%vy(i) = s%vy(i) + h*s%fy(i)/s%mass(i)
+      end do
+    case (int_semi_euler)
+      do i = 1, s%n
+        s%vx(i) = s%vx(i) + h*s%fx(i)/s%mass(i)
+        s%vy(i) = s%vy(i) + h*s%fy(i)/s%mass(i)
+        s%x(i) = s%x(i) + h*s%vx(i)
+        s%y(i) = s%y(i) + h*s%vy(i)
       end do
     end select
     s%has_previous = .true.

@@ -18,12 +18,13 @@ module model
 
   public :: model_t, model_build
   public :: law_none, law_dipole, wall_experimental, wall_infinite, wall_slab
-  public :: int_stormer_verlet, int_velocity_verlet, int_euler
+  public :: int_stormer_verlet, int_velocity_verlet, int_euler, int_semi_euler
   public :: piston_prescribed, piston_fixed, piston_none, piston_free
 
   integer, parameter :: law_none = 0, law_dipole = 1
   integer, parameter :: wall_experimental = 1, wall_infinite = 2, wall_slab = 3
   integer, parameter :: int_stormer_verlet = 1, int_velocity_verlet = 2, int_euler = 3
+  integer, parameter :: int_semi_euler = 4   !< kind 'lj_box' only
   integer, parameter :: piston_prescribed = 1, piston_fixed = 2, piston_none = 0, piston_free = 3
 
   type :: model_t

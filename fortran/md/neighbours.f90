@@ -10,10 +10,11 @@
 module neighbours
   use kinds, only: dp, i8
   use parallel, only: par_min_loop
+  use state, only: state_t, state_permute
   implicit none
   private
 
-  public :: nlist_t, nlist_setup, nlist_due, nlist_bin, nlist_build
+  public :: nlist_t, nlist_setup, nlist_due, nlist_bin, nlist_build, nlist_refresh, nlist_owners
   public :: nb_all_pairs, nb_cells, nb_verlet, nb_thesis
 
   integer, parameter :: nb_all_pairs = 0, nb_cells = 1, nb_verlet = 2, nb_thesis = 3
@@ -30,6 +31,8 @@ module neighbours
     integer, allocatable :: cell_part(:)   !< (n) particles ordered by cell
     integer, allocatable :: start(:)       !< (n + 1) CSR offsets into nbr
     integer, allocatable :: nbr(:)         !< neighbours j > i of each i
+    logical :: with_owner = .false.        !< also fill own (flat pair loops)
+    integer, allocatable :: own(:)         !< i of each listed pair (with_owner only)
     real(dp), allocatable :: xref(:), yref(:)  !< positions at the last build (n)
     logical :: valid = .false.             !< a list exists for the current ordering
     integer(i8) :: builds = 0              !< number of list builds
@@ -82,6 +85,35 @@ contains
     !$omp end parallel do
     due = d2max > lim2
   end function nlist_due
+
+  !> Before a force pass: rebuild the list when due, re-sorting the particles
+  !> by cell first (memory locality; not for 'cells', whose grid is rebuilt every step).
+  subroutine nlist_refresh(nl, s)
+    type(nlist_t), intent(inout) :: nl
+    type(state_t), intent(inout) :: s
+    if (.not. nlist_due(nl, s%n, s%x, s%y)) return
+    call nlist_bin(nl, s%n, s%x, s%y)
+    if (nl%strategy /= nb_cells) then
+      call state_permute(s, nl%cell_part)
+      call nlist_bin(nl, s%n, s%x, s%y)
+    end if
+    call nlist_build(nl, s%n, s%x, s%y)
+  end subroutine nlist_refresh
+
+  !> own(k) = the row i of listed pair k (with_owner lists only; also after a restore).
+  subroutine nlist_owners(nl, n)
+    type(nlist_t), intent(inout) :: nl
+    integer, intent(in) :: n
+    integer :: i
+    if (.not. nl%with_owner) return
+    if (allocated(nl%own)) then
+      if (size(nl%own) /= size(nl%nbr)) deallocate(nl%own)
+    end if
+    if (.not. allocated(nl%own)) allocate(nl%own(size(nl%nbr)))
+    do i = 1, n
+      nl%own(nl%start(i):nl%start(i + 1) - 1) = i
+    end do
+  end subroutine nlist_owners
 
   pure integer function cell_index(nl, xi, yi) result(c)
     type(nlist_t), intent(in) :: nl
@@ -143,12 +175,14 @@ contains
       deallocate(nl%nbr)
       allocate(nl%nbr(total + total/4 + 16))
     end if
+
     !$omp parallel do if (n >= par_min_loop) schedule(static) private(i, dummy)
     do i = 1, n
       call scan_row(i, .true., dummy, nl%start(i))
     end do
     !$omp end parallel do
     nl%pairs = total
+    call nlist_owners(nl, n)
     nl%xref = x
     nl%yref = y
     nl%valid = .true.

@@ -5,14 +5,35 @@
 !>
 !> Truncated strategies may shift the force (shift4 = r_c^-4) so that it
 !> vanishes continuously at r_c: f(r) = k (r^-4 - r_c^-4).
+!>
+!> The same passes (all pairs, half lists, threads) carry a second law, the
+!> truncated Lennard-Jones of seed 000 (eqs. 3-5, kind 'lj_box'): selected by
+!> the optional `law` argument (type lj_law_t); mu = 1, k_pair = 1, no r^-3 sums.
 module pair_forces
   use kinds, only: dp
   implicit none
   private
 
   public :: dipole_kernel, pair_forces_all, pair_forces_list, pair_forces_far, pair_energy_all
+  public :: lj_law_t, lj_law, lj_kernel, lj_energy
 
   integer, parameter :: mode_all = 1, mode_list = 2
+  integer, parameter :: kernel_dipole = 1, kernel_lj6 = 2, kernel_lj = 3
+
+  !> Seed 000's steric law between r_m and the cut-off R: U = 4 U0 ((2/r)^2p - (2/r)^p),
+  !> continued linearly below r_m (constant force |U'(r_m)|). Lengths in a, energies
+  !> in m g a. p is an integer (powers by multiplication; p = 6 has its own unrolled path).
+  type :: lj_law_t
+    integer :: kernel = kernel_lj
+    integer :: p = 6            !< exponent [1]
+    real(dp) :: u0 = 1          !< well depth U0 [m g a]
+    real(dp) :: rm = 1.8_dp     !< lower cut-off r_m [a]
+    real(dp) :: rm2 = 3.24_dp   !< r_m^2 [a^2]
+    real(dp) :: c4p = 24        !< 4 p U0 [m g a]
+    real(dp) :: fcore = 0       !< |U'(r_m)| [m g]
+    real(dp) :: ucore = 0       !< U_LJ(r_m) [m g a]
+    real(dp) :: rc2 = 25        !< R^2: zero beyond the cut-off R, for every strategy [a^2]
+  end type lj_law_t
 
   !> Spill buffers of threaded_pass (n, 3, threads): reactions a thread puts on
   !> rows owned by later threads. Kept between passes and all zero between them.
@@ -33,9 +54,125 @@ contains
     s5 = s3*r2inv - shift4*rinv
   end subroutine dipole_kernel
 
+  !> The law with exponent p, depth u0 [m g a], lower cut-off rm [a] (rm > 0) and
+  !> cut-off rc [a] (plain truncation, as eq. 3: force and energy jump at R).
+  pure function lj_law(p, u0, rm, rc) result(l)
+    integer, intent(in) :: p
+    real(dp), intent(in) :: u0, rm, rc
+    type(lj_law_t) :: l
+    real(dp) :: q
+    l%p = p
+    l%kernel = merge(kernel_lj6, kernel_lj, p == 6)
+    l%u0 = u0
+    l%rm = rm
+    l%rm2 = rm*rm
+    l%c4p = 4.0_dp*real(p, dp)*u0
+    q = (2.0_dp/rm)**p
+    l%fcore = l%c4p/rm*(2*q*q - q)     ! -U'(r_m), eq. (9)
+    l%ucore = 4.0_dp*u0*(q*q - q)
+    l%rc2 = rc*rc
+  end function lj_law
+
+  !> Force factor s (force on i = s (r_i - r_j)) at squared distance r2 [a^2]:
+  !> 4 p U0 r^-2 (2 q^2 - q), q = (2/r)^p, above r_m; |U'(r_m)|/r at and below r_m; 0 at
+  !> and beyond R. No non-integer powers: q from w = 4/r^2 by multiplication (one sqrt for
+  !> the core branch and odd p). lj6_kernel is the same for p = 6, unrolled (vectorises).
+  pure elemental subroutine lj_kernel(l, r2, s)
+    type(lj_law_t), intent(in) :: l
+    real(dp), intent(in) :: r2
+    real(dp), intent(out) :: s
+    real(dp) :: r2inv, rinv, q
+    real(dp) :: s_lj, s_core, r2c
+    r2c = max(r2, l%rm2)            ! the power law where it applies (finite otherwise)
+    r2inv = 1.0_dp/r2c
+    q = (4.0_dp*r2inv)**(l%p/2)
+    if (mod(l%p, 2) == 1) q = q*2.0_dp*sqrt(r2inv)
+    s_lj = l%c4p*r2inv*(2*q*q - q)
+    rinv = sqrt(1.0_dp/r2)
+    s_core = l%fcore*rinv
+    s = merge(s_lj, s_core, r2 > l%rm2)*merge(1.0_dp, 0.0_dp, r2 < l%rc2)
+  end subroutine lj_kernel
+
+  !> p = 6 above r_m (no sqrt, no branch: vectorises); r2 at or below r_m^2 is evaluated at
+  !> r_m and flagged (core = 1) for lj_chunk's fix-up with the core force.
+  pure elemental subroutine lj6_kernel(c4p, rm2, rc2, r2, s, core)
+    real(dp), intent(in) :: c4p, rm2, rc2, r2
+    real(dp), intent(out) :: s
+    integer, intent(out) :: core
+    real(dp) :: w, q
+    w = 4.0_dp/max(r2, rm2)
+    q = w*w*w
+    s = 0.25_dp*c4p*w*(2*q*q - q)*merge(1.0_dp, 0.0_dp, r2 < rc2)
+    core = merge(1, 0, r2 <= rm2)
+  end subroutine lj6_kernel
+
+  !> The Lennard-Jones kernel of the law over a chunk of nk squared distances (the law's
+  !> numbers copied to locals first: the loop then vectorises). Pairs inside the linear
+  !> core (rare) get |U'(r_m)|/r in a second, scalar loop run only when the chunk has any.
+  subroutine lj_chunk(l, nk, r2s, cs)
+    type(lj_law_t), intent(in) :: l
+    integer, intent(in) :: nk
+    real(dp), intent(in) :: r2s(nk)
+    real(dp), intent(out) :: cs(nk)
+    real(dp) :: c4p, rm2, rc2
+    integer :: m, cores, core
+    if (l%kernel /= kernel_lj6) then
+      call lj_kernel(l, r2s, cs)
+      return
+    end if
+    c4p = l%c4p; rm2 = l%rm2; rc2 = l%rc2
+    cores = 0
+    do m = 1, nk
+      call lj6_kernel(c4p, rm2, rc2, r2s(m), cs(m), core)
+      cores = cores + core
+    end do
+    if (cores == 0) return
+    do m = 1, nk
+      if (r2s(m) <= rm2) cs(m) = l%fcore*sqrt(1.0_dp/r2s(m))
+    end do
+  end subroutine lj_chunk
+
+  !> Potential energy of the law [m g a] (pairs within R): over the pairs of a half list
+  !> (start, nbr) when given (its radius >= R), else every pair.
+  function lj_energy(n, x, y, l, start, nbr) result(e)
+    integer, intent(in) :: n
+    real(dp), intent(in) :: x(n), y(n)
+    type(lj_law_t), intent(in) :: l
+    integer, intent(in), optional :: start(:), nbr(:)
+    real(dp) :: e
+    integer :: i, j, k
+    e = 0
+    do i = 1, n - 1
+      if (present(start)) then
+        do k = start(i), start(i + 1) - 1
+          e = e + u_pair(i, nbr(k))
+        end do
+      else
+        do j = i + 1, n
+          e = e + u_pair(i, j)
+        end do
+      end if
+    end do
+  contains
+    real(dp) function u_pair(a, b) result(u)
+      integer, intent(in) :: a, b
+      real(dp) :: r2, r, q
+      r2 = (x(a) - x(b))**2 + (y(a) - y(b))**2
+      u = 0
+      if (r2 >= l%rc2) return
+      r = sqrt(r2)
+      if (r2 > l%rm2) then
+        q = (2.0_dp/r)**l%p
+        u = 4.0_dp*l%u0*(q*q - q)
+      else
+        u = l%ucore - l%fcore*(r - l%rm)
+      end if
+    end function u_pair
+  end function lj_energy
+
   !> O(N^2) reference: every pair once, Newton's third law applied exactly.
   !> Adds to fx, fy (n) [m1 g]; if with_r3, adds to s3 (n).
-  subroutine pair_forces_all(n, x, y, mu, wsin, k_pair, with_r3, fx, fy, s3, r2min)
+  subroutine pair_forces_all(n, x, y, mu, wsin, k_pair, with_r3, fx, fy, s3, r2min, law)
     integer, intent(in) :: n
     real(dp), intent(in) :: x(n), y(n)       !< positions [D1]
     real(dp), intent(in) :: mu(n)            !< relative moments mu_i/mu1
@@ -45,16 +182,17 @@ contains
     real(dp), intent(inout) :: fx(n), fy(n)  !< forces [m1 g]
     real(dp), intent(inout) :: s3(n)         !< sum_j wsin_j r_ij^-3
     real(dp), intent(out) :: r2min           !< smallest squared pair distance [D1^2]
+    type(lj_law_t), intent(in), optional :: law   !< Lennard-Jones instead of the dipole law
     integer :: dummy(1)
-    call threaded_pass(mode_all, n, x, y, mu, wsin, k_pair, 0.0_dp, 0.0_dp, 0.0_dp, .false., &
-         with_r3, dummy, dummy, fx, fy, s3, r2min)
+    call threaded_pass(mode_all, kernel_of(law), law_of(law), n, x, y, mu, wsin, k_pair, &
+         0.0_dp, 0.0_dp, 0.0_dp, .false., with_r3, dummy, dummy, fx, fy, s3, r2min)
   end subroutine pair_forces_all
 
   !> Half neighbour list (pairs i < j stored once, CSR: the neighbours of i
   !> are nbr(start(i) : start(i+1)-1)). Pairs at r >= r_c are skipped when
   !> check is set (the thesis variant r_c = r_v uses every listed pair).
   subroutine pair_forces_list(n, x, y, mu, wsin, k_pair, rc2, shift4, check, with_r3, &
-       start, nbr, fx, fy, s3, r2min)
+       start, nbr, fx, fy, s3, r2min, law, own)
     integer, intent(in) :: n
     real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair
     real(dp), intent(in) :: rc2       !< squared cut-off [D1^2]
@@ -63,9 +201,23 @@ contains
     integer, intent(in) :: start(n + 1), nbr(:)
     real(dp), intent(inout) :: fx(n), fy(n), s3(n)
     real(dp), intent(out) :: r2min    !< smallest squared distance among listed pairs
-    call threaded_pass(mode_list, n, x, y, mu, wsin, k_pair, 0.0_dp, rc2, shift4, check, &
-         with_r3, start, nbr, fx, fy, s3, r2min)
+    type(lj_law_t), intent(in), optional :: law   !< Lennard-Jones instead of the dipole law
+    integer, intent(in), optional :: own(:)      !< with law: the row of each pair (nlist own)
+    call threaded_pass(mode_list, kernel_of(law), law_of(law), n, x, y, mu, wsin, k_pair, &
+         0.0_dp, rc2, shift4, check, with_r3, start, nbr, fx, fy, s3, r2min, own)
   end subroutine pair_forces_list
+
+  pure integer function kernel_of(law) result(k)
+    type(lj_law_t), intent(in), optional :: law
+    k = kernel_dipole
+    if (present(law)) k = law%kernel
+  end function kernel_of
+
+  pure function law_of(law) result(l)
+    type(lj_law_t), intent(in), optional :: law
+    type(lj_law_t) :: l
+    if (present(law)) l = law
+  end function law_of
 
   !> The far field: every pair at r >= r_c, O(N^2), for the frozen tail
   !> correction (recomputed every tail_every steps). Overwrites fx, fy, s3.
@@ -77,17 +229,18 @@ contains
     integer :: dummy(1)
     real(dp) :: r2min
     fx = 0; fy = 0; s3 = 0
-    call threaded_pass(mode_all, n, x, y, mu, wsin, k_pair, rc2, 0.0_dp, 0.0_dp, .false., &
-         with_r3, dummy, dummy, fx, fy, s3, r2min)
+    call threaded_pass(mode_all, kernel_dipole, lj_law_t(), n, x, y, mu, wsin, k_pair, rc2, &
+         0.0_dp, 0.0_dp, .false., with_r3, dummy, dummy, fx, fy, s3, r2min)
   end subroutine pair_forces_far
 
   !> Rows i_lo..i_hi of the all-pairs triangle; pairs with r^2 < r2_min are
   !> masked out (0 for the full sum, r_c^2 for the far field). Reactions on
   !> j <= hi_direct go to fx, fy, s3, those on j > hi_direct to the spill
   !> arrays sx, sy, ss (another thread owns those rows; see threaded_pass).
-  subroutine rows_all(i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, r2_min, with_r3, &
-       fx, fy, s3, sx, sy, ss, r2low)
-    integer, intent(in) :: i_lo, i_hi, hi_direct, n
+  subroutine rows_all(kernel, l, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, r2_min, &
+       with_r3, fx, fy, s3, sx, sy, ss, r2low)
+    integer, intent(in) :: kernel, i_lo, i_hi, hi_direct, n
+    type(lj_law_t), intent(in) :: l
     real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair, r2_min
     logical, intent(in) :: with_r3
     real(dp), intent(inout) :: fx(n), fy(n), s3(n)
@@ -97,10 +250,10 @@ contains
     real(dp) :: fxi, fyi, s3i
     do i = i_lo, i_hi
       fxi = 0; fyi = 0; s3i = 0
-      call row_segment(i, i + 1, min(n, hi_direct), n, x, y, mu, wsin, k_pair, r2_min, &
-           with_r3, fx, fy, s3, fxi, fyi, s3i, r2low)
-      if (hi_direct < n) call row_segment(i, max(i + 1, hi_direct + 1), n, n, x, y, mu, &
-           wsin, k_pair, r2_min, with_r3, sx, sy, ss, fxi, fyi, s3i, r2low)
+      call row_segment(kernel, l, i, i + 1, min(n, hi_direct), n, x, y, mu, wsin, k_pair, &
+           r2_min, with_r3, fx, fy, s3, fxi, fyi, s3i, r2low)
+      if (hi_direct < n) call row_segment(kernel, l, i, max(i + 1, hi_direct + 1), n, n, x, &
+           y, mu, wsin, k_pair, r2_min, with_r3, sx, sy, ss, fxi, fyi, s3i, r2low)
       fx(i) = fx(i) + fxi
       fy(i) = fy(i) + fyi
       if (with_r3) s3(i) = s3(i) + s3i
@@ -109,15 +262,19 @@ contains
 
   !> Pairs (i, j), j = j_lo..j_hi, of the triangle (contiguous j: vectorised).
   !> The action on i is added to fxi, fyi, s3i, the reaction to ax, ay, a3(j).
-  subroutine row_segment(i, j_lo, j_hi, n, x, y, mu, wsin, k_pair, r2_min, with_r3, &
-       ax, ay, a3, fxi, fyi, s3i, r2low)
-    integer, intent(in) :: i, j_lo, j_hi, n
+  !> One fused loop per law (the law chosen outside it); r^-3 sums for the dipole only.
+  subroutine row_segment(kernel, l, i, j_lo, j_hi, n, x, y, mu, wsin, k_pair, r2_min, &
+       with_r3, ax, ay, a3, fxi, fyi, s3i, r2low)
+    integer, intent(in) :: kernel, i, j_lo, j_hi, n
+    type(lj_law_t), intent(in) :: l
     real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair, r2_min
     logical, intent(in) :: with_r3
     real(dp), intent(inout) :: ax(*), ay(*), a3(*)
     real(dp), intent(inout) :: fxi, fyi, s3i, r2low
-    integer :: j
+    integer, parameter :: chunk = 256
+    integer :: j, j0, m, nk
     real(dp) :: xi, yi, ci, wi, dx, dy, r2, s5, r3, c, keep, low, gx, gy, g3
+    real(dp) :: dxs(chunk), dys(chunk), r2s(chunk), cs(chunk)
     ! accumulate in locals: dummy arguments updated in the inner loop may
     ! alias the force arrays (no vectorisation) and false-share between threads
     low = r2low
@@ -125,24 +282,44 @@ contains
     xi = x(i); yi = y(i)
     ci = k_pair*mu(i)
     wi = wsin(i)
-    do j = j_lo, j_hi
-      dx = xi - x(j)
-      dy = yi - y(j)
-      r2 = dx*dx + dy*dy
-      low = min(low, r2)
-      keep = merge(1.0_dp, 0.0_dp, r2 >= r2_min)
-      call dipole_kernel(r2, 0.0_dp, s5, r3)
-      c = keep*ci*mu(j)*s5
-      gx = gx + c*dx
-      gy = gy + c*dy
-      ax(j) = ax(j) - c*dx
-      ay(j) = ay(j) - c*dy
-      if (with_r3) then
-        r3 = keep*r3
-        g3 = g3 + wsin(j)*r3
-        a3(j) = a3(j) + wi*r3
-      end if
-    end do
+    if (kernel == kernel_dipole) then
+      do j = j_lo, j_hi
+        dx = xi - x(j)
+        dy = yi - y(j)
+        r2 = dx*dx + dy*dy
+        low = min(low, r2)
+        keep = merge(1.0_dp, 0.0_dp, r2 >= r2_min)
+        call dipole_kernel(r2, 0.0_dp, s5, r3)
+        c = keep*ci*mu(j)*s5
+        gx = gx + c*dx
+        gy = gy + c*dy
+        ax(j) = ax(j) - c*dx
+        ay(j) = ay(j) - c*dy
+        if (with_r3) then
+          r3 = keep*r3
+          g3 = g3 + wsin(j)*r3
+          a3(j) = a3(j) + wi*r3
+        end if
+      end do
+    else                     ! Lennard-Jones in chunks: distances, the law's kernel, sums
+      do j0 = j_lo, j_hi, chunk
+        nk = min(chunk, j_hi - j0 + 1)
+        do m = 1, nk
+          dxs(m) = xi - x(j0 + m - 1)
+          dys(m) = yi - y(j0 + m - 1)
+          r2s(m) = dxs(m)*dxs(m) + dys(m)*dys(m)
+          low = min(low, r2s(m))
+        end do
+        call lj_chunk(l, nk, r2s, cs)
+        do m = 1, nk
+          j = j0 + m - 1
+          gx = gx + cs(m)*dxs(m)
+          gy = gy + cs(m)*dys(m)
+          ax(j) = ax(j) - cs(m)*dxs(m)
+          ay(j) = ay(j) - cs(m)*dys(m)
+        end do
+      end do
+    end if
     fxi = fxi + gx
     fyi = fyi + gy
     s3i = s3i + g3
@@ -152,8 +329,8 @@ contains
   !> Rows i_lo..i_hi of a half neighbour list. Two passes per chunk: gather
   !> and evaluate (vectorisable), then accumulate on i and scatter on j
   !> (reactions on j > hi_direct to the spill arrays, as in rows_all).
-  subroutine rows_list(i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, shift4, check, &
-       with_r3, start, nbr, fx, fy, s3, sx, sy, ss, r2low)
+  subroutine rows_list(i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, &
+       shift4, check, with_r3, start, nbr, fx, fy, s3, sx, sy, ss, r2low)
     integer, intent(in) :: i_lo, i_hi, hi_direct, n
     real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair, rc2, shift4
     logical, intent(in) :: check, with_r3
@@ -228,6 +405,66 @@ contains
     r2low = low
   end subroutine rows_list
 
+  !> Lennard-Jones over the pairs of rows i_lo..i_hi of a half list, taken as one flat
+  !> sequence (own(k) = the row of pair k): chunks of 256 pairs whatever the row lengths
+  !> (at the seed's densities a row holds ~5 pairs, too few to vectorise row by row).
+  !> Reactions on j > hi_direct go to the spill arrays sx, sy (see threaded_pass).
+  subroutine rows_pairs(l, i_lo, i_hi, hi_direct, n, x, y, start, nbr, own, fx, fy, sx, sy, &
+       r2low)
+    type(lj_law_t), intent(in) :: l
+    integer, intent(in) :: i_lo, i_hi, hi_direct, n
+    real(dp), intent(in) :: x(n), y(n)
+    integer, intent(in) :: start(n + 1), nbr(:), own(:)
+    real(dp), intent(inout) :: fx(n), fy(n), sx(*), sy(*)
+    real(dp), intent(inout) :: r2low
+    integer, parameter :: chunk = 256
+    integer :: i, j, m, k0, nk, k_hi, ic
+    real(dp) :: low, gx, gy, ax, ay
+    real(dp) :: dxs(chunk), dys(chunk), r2s(chunk), cs(chunk)
+    low = r2low
+    k_hi = start(i_hi + 1) - 1
+    do k0 = start(i_lo), k_hi, chunk
+      nk = min(chunk, k_hi - k0 + 1)
+      do m = 1, nk
+        i = own(k0 + m - 1)
+        j = nbr(k0 + m - 1)
+        dxs(m) = x(i) - x(j)
+        dys(m) = y(i) - y(j)
+        r2s(m) = dxs(m)*dxs(m) + dys(m)*dys(m)
+        low = min(low, r2s(m))
+      end do
+      call lj_chunk(l, nk, r2s, cs)
+      ! the action on i summed in registers while the row lasts (pairs are in row order):
+      ! no store-to-load chain through fx(i) from one pair to the next
+      ic = own(k0)
+      ax = 0; ay = 0
+      do m = 1, nk
+        i = own(k0 + m - 1)
+        j = nbr(k0 + m - 1)
+        if (i /= ic) then
+          fx(ic) = fx(ic) + ax
+          fy(ic) = fy(ic) + ay
+          ic = i
+          ax = 0; ay = 0
+        end if
+        gx = cs(m)*dxs(m)
+        gy = cs(m)*dys(m)
+        ax = ax + gx
+        ay = ay + gy
+        if (j <= hi_direct) then
+          fx(j) = fx(j) - gx
+          fy(j) = fy(j) - gy
+        else
+          sx(j) = sx(j) - gx
+          sy(j) = sy(j) - gy
+        end if
+      end do
+      fx(ic) = fx(ic) + ax
+      fy(ic) = fy(ic) + ay
+    end do
+    r2low = low
+  end subroutine rows_pairs
+
   !> Run the rows on the OpenMP threads, deterministically and without
   !> per-step buffers. Thread t takes a fixed block of rows lo_t..hi_t
   !> holding ~1/nt of the pairs. Since every pair (i, j) has j > i, only
@@ -236,15 +473,17 @@ contains
   !> following blocks) into a persistent spill buffer. After a barrier the
   !> spills are added in thread order and reset to zero. The result does not
   !> depend on scheduling, and on the thread count only through round-off.
-  subroutine threaded_pass(mode, n, x, y, mu, wsin, k_pair, r2_min, rc2, shift4, check, &
-       with_r3, start, nbr, fx, fy, s3, r2low)
+  subroutine threaded_pass(mode, kernel, l, n, x, y, mu, wsin, k_pair, r2_min, rc2, shift4, &
+       check, with_r3, start, nbr, fx, fy, s3, r2low, own)
     !$ use omp_lib, only: omp_get_max_threads, omp_get_thread_num
-    integer, intent(in) :: mode, n
+    integer, intent(in) :: mode, kernel, n
+    type(lj_law_t), intent(in) :: l
     real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair, r2_min, rc2, shift4
     logical, intent(in) :: check, with_r3
     integer, intent(in) :: start(:), nbr(:)
     real(dp), intent(inout) :: fx(n), fy(n), s3(n)
     real(dp), intent(out) :: r2low
+    integer, intent(in), optional :: own(:)   !< row of each listed pair (Lennard-Jones lists)
     real(dp) :: low(64)
     integer :: nt, t, lo, hi, i, u
     integer :: bound(0:64)
@@ -304,11 +543,14 @@ contains
       integer, intent(in) :: i_lo, i_hi, hi_direct
       real(dp), intent(inout) :: ax(n), ay(n), a3(n), bx(*), by(*), b3(*), lw
       if (mode == mode_all) then
-        call rows_all(i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, r2_min, with_r3, &
-             ax, ay, a3, bx, by, b3, lw)
+        call rows_all(kernel, l, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, r2_min, &
+             with_r3, ax, ay, a3, bx, by, b3, lw)
+      else if (kernel == kernel_dipole) then
+        call rows_list(i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, &
+             shift4, check, with_r3, start, nbr, ax, ay, a3, bx, by, b3, lw)
       else
-        call rows_list(i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, shift4, check, &
-             with_r3, start, nbr, ax, ay, a3, bx, by, b3, lw)
+        call rows_pairs(l, i_lo, i_hi, hi_direct, n, x, y, start, nbr, own, ax, ay, bx, by, &
+             lw)
       end if
     end subroutine rows
     !> Last row of the first k shares (0 for k = 0, n for k = nt).

@@ -1,0 +1,824 @@
+!> Kind 'lj_box' (seed 000): N particles of radius a in the box [0, L]^2,
+!>   dv/dt = -(9/2) alpha v + F_ext(x, t) + F_steric,   dx/dt = v          (eq. 6)
+!> with the truncated Lennard-Jones steric law (eqs. 3-5, 8-9; pair_forces' lj_law_t, through
+!> the bed's neighbour strategies and threaded passes), Stokes drag (friction's viscous term
+!> with gamma = 9 alpha/2), an external field (module fields) and inelastic mirror walls
+!> (module mirror_walls, eq. 10). Integrators: the seed's explicit Euler, semi-implicit
+!> (symplectic) Euler, velocity Verlet (module integrators).
+!>
+!> Units (the seed's dimensionless form): length a, time T = sqrt(a/g), mass m (every
+!> particle mass 1), force m g, energy m g a.
+module lj_box
+  use kinds, only: dp, i8
+  use errors, only: status_t, set_error, exit_bad_input, exit_io, exit_numerical, msg_len
+  use method, only: method_t, fname_len, max_out_files, add_output
+  use tables, only: table_t, table_open, table_line, table_flush, table_close, rfmt
+  use frames, only: frames_t, frames_open, frames_begin, frames_put, frames_end, frames_flush, &
+       frames_close, json_real
+  use scene_input, only: open_scene, group_status, kind_len, check_real, check_int, &
+       check_choice, choice_index, put_real, put_int, put_str, int_str, real_str
+  use ckpt, only: ckpt_writer_t, ckpt_put, file_crc64
+  use state, only: state_t, state_allocate
+  use neighbours, only: nlist_t, nlist_setup, nlist_refresh, nlist_owners, nb_all_pairs, &
+       nb_cells, nb_verlet
+  use pair_forces, only: lj_law_t, lj_law, pair_forces_all, pair_forces_list, lj_energy
+  use fields, only: field_t, field_add, field_potential, field_has_potential, &
+       field_read_table, field_shapes, field_modulations, field_static
+  use mirror_walls, only: mirror_reflect
+  use friction, only: viscous_friction
+  use integrators, only: estimate_velocity, finish_velocity, advance_step => advance
+  use model, only: int_velocity_verlet, int_euler, int_semi_euler
+  use initial, only: seed_rng
+  use checkpoint, only: checkpoint_save, checkpoint_restore
+  use parallel, only: init_threads
+  use, intrinsic :: iso_fortran_env, only: int8
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
+  implicit none
+  private
+
+  public :: lj_box_t
+
+  integer, parameter :: nm = 32
+  integer(i8), parameter :: max_steps = 4000000000000000000_i8
+  real(dp), parameter :: big = 1.0e12_dp
+  character(len=*), parameter :: units = 'Units: length a (particle radius), time T = '// &
+       'sqrt(a/g), mass m (all 1), force m g, energy m g a.'
+  character(len=*), parameter :: method_names(3) = [character(len=19) :: 'euler', &
+       'semi_implicit_euler', 'velocity_verlet']
+  integer, parameter :: method_codes(3) = [int_euler, int_semi_euler, int_velocity_verlet]
+  character(len=*), parameter :: neighbour_names(3) = [character(len=9) :: 'verlet', 'cells', &
+       'all_pairs']
+  integer, parameter :: neighbour_codes(3) = [nb_verlet, nb_cells, nb_all_pairs]
+  !> columns of frames.dat and frames.bin after step and t
+  character(len=*), parameter :: frame_cols(6) = [character(len=4) :: 'id', 'type', 'x', 'y', &
+       'vx', 'vy']
+  character(len=*), parameter :: frame_units(6) = [character(len=4) :: '', '', 'a', 'a', 'a/T', &
+       'a/T']
+
+  type, extends(method_t) :: lj_box_t
+    ! &scene
+    character(len=kind_len) :: kind = 'lj_box'
+    character(len=128) :: title = 'untitled'
+    ! &box
+    real(dp) :: l = 40                      !< side L [a]
+    ! &particles
+    integer(i8) :: n = 200
+    character(len=nm) :: placement = 'random'
+    real(dp) :: min_distance = 2            !< [a]
+    character(len=nm) :: velocities = 'zero'
+    real(dp) :: speed = 1                   !< [a/T]
+    real(dp) :: temperature = 1             !< kT [m g a]
+    integer(i8) :: seed = 1
+    integer(i8) :: type_id = 0              !< particle type written to frames (GNS: not 3)
+    ! &steric
+    character(len=nm) :: law = 'lj'
+    integer(i8) :: p = 6
+    real(dp) :: u0 = 1                      !< [m g a]
+    real(dp) :: r_m = 1.8_dp                !< [a]
+    real(dp) :: r_cut = 5                   !< R [a]
+    character(len=nm) :: neighbour = 'verlet'
+    real(dp) :: skin = 0.6_dp               !< [a]
+    ! &physics
+    real(dp) :: alpha = 0                   !< eq. (7)
+    ! &field (parameters in self%fl)
+    character(len=nm) :: field_type = 'none', modulation = 'none'
+    character(len=512) :: field_file = ''
+    ! &walls
+    real(dp) :: gamma = 1
+    character(len=nm) :: contact = 'surface'
+    ! &integration
+    character(len=nm) :: integrator = 'semi_implicit_euler'
+    real(dp) :: dt = 1.0e-3_dp              !< [T]
+    integer(i8) :: steps = 10000
+    ! &output (cadences in steps; 0 = file off)
+    integer(i8) :: frame_every = 100, energy_every = 100
+    integer(i8) :: field_grid = 0           !< field.dat: grid points per side (0 = off)
+    character(len=nm) :: frames_format = 'text'   !< frames.dat | 'binary': frames.bin | 'both'
+    ! built
+    type(field_t) :: fl
+    type(lj_law_t) :: lj
+    type(state_t) :: s, none
+    type(nlist_t) :: nl
+    integer :: method = int_semi_euler, strategy = nb_verlet
+    logical :: steric_on = .true.
+    real(dp) :: lo = 1, hi = 39             !< reachable centre range [a]
+    integer(i8) :: wall_hits = 0
+    integer(i8) :: table_crc = 0
+    real(dp) :: r2min = 0
+    type(table_t) :: frames, energy, field_out
+    type(frames_t) :: frames_bin
+  contains
+    procedure :: load, read => read_file, scene_text, open_outputs, advance, finish
+    procedure :: close_outputs, output_files, save_state, restore_state, counters
+    procedure :: progress_text, json_fields
+  end type lj_box_t
+
+contains
+
+  subroutine load(self, path, st)
+    class(lj_box_t), intent(inout) :: self
+    character(len=*), intent(in) :: path
+    type(status_t), intent(inout) :: st
+    call self%read(path, st)
+    if (st%code /= 0) return
+    call validate(self, path, st)
+    if (st%code /= 0) return
+    call build(self, st)
+    if (st%code /= 0) return
+    call initial_state(self, path, st)
+  end subroutine load
+
+  !> The scene file's groups (type checks only).
+  subroutine read_file(self, path, st)
+    class(lj_box_t), intent(inout) :: self
+    character(len=*), intent(in) :: path
+    type(status_t), intent(inout) :: st
+    character(len=kind_len) :: kind
+    character(len=128) :: title
+    real(dp) :: l, min_distance, speed, temperature, u0, r_m, r_cut, skin, alpha, gamma, dt
+    real(dp) :: f0x, f0y, gxx, gxy, gyx, gyy, x0, y0, amplitude, ex, ey, kx, ky, omega, phase
+    real(dp) :: power, r0, r_core, mod_omega, mod_phase, mod_time
+    integer(i8) :: n, seed, type_id, p, steps, frame_every, energy_every, checkpoint_every
+    integer(i8) :: progress_every, field_grid
+    character(len=nm) :: placement, velocities, law, neighbour, type, modulation, contact
+    character(len=nm) :: method, frames_format
+    character(len=512) :: file
+    integer :: u, ios
+    character(len=msg_len) :: iom
+    namelist /scene/ kind, title
+    namelist /box/ l
+    namelist /particles/ n, placement, min_distance, velocities, speed, temperature, seed, &
+         type_id
+    namelist /steric/ law, p, u0, r_m, r_cut, neighbour, skin
+    namelist /physics/ alpha
+    namelist /field/ type, f0x, f0y, gxx, gxy, gyx, gyy, x0, y0, amplitude, ex, ey, kx, ky, &
+         omega, phase, power, r0, r_core, modulation, mod_omega, mod_phase, mod_time, file
+    namelist /walls/ gamma, contact
+    namelist /integration/ method, dt, steps
+    namelist /output/ frame_every, energy_every, checkpoint_every, progress_every, field_grid, &
+         frames_format
+    kind = self%kind; title = self%title; l = self%l
+    n = self%n; placement = self%placement; min_distance = self%min_distance
+    velocities = self%velocities; speed = self%speed; temperature = self%temperature
+    seed = self%seed; type_id = self%type_id
+    law = self%law; p = self%p; u0 = self%u0; r_m = self%r_m; r_cut = self%r_cut
+    neighbour = self%neighbour; skin = self%skin; alpha = self%alpha
+    associate (f => self%fl)
+      type = self%field_type; modulation = self%modulation; file = self%field_file
+      f0x = f%f0x; f0y = f%f0y; gxx = f%gxx; gxy = f%gxy; gyx = f%gyx; gyy = f%gyy
+      x0 = f%x0; y0 = f%y0; amplitude = f%amplitude; ex = f%ex; ey = f%ey; kx = f%kx
+      ky = f%ky; omega = f%omega; phase = f%phase; power = f%power; r0 = f%r0
+      r_core = f%r_core; mod_omega = f%mod_omega; mod_phase = f%mod_phase
+      mod_time = f%mod_time
+    end associate
+    gamma = self%gamma; contact = self%contact
+    method = self%integrator; dt = self%dt; steps = self%steps
+    frame_every = self%frame_every; energy_every = self%energy_every
+    checkpoint_every = self%checkpoint_every; progress_every = self%progress_every
+    field_grid = self%field_grid; frames_format = self%frames_format
+    call open_scene(path, u, st)
+    if (st%code /= 0) return
+    read(u, nml=scene, iostat=ios, iomsg=iom)
+    call group_status(path, 'scene', ios, iom, .true., st)
+    rewind(u); read(u, nml=box, iostat=ios, iomsg=iom)
+    call group_status(path, 'box', ios, iom, .false., st)
+    rewind(u); read(u, nml=particles, iostat=ios, iomsg=iom)
+    call group_status(path, 'particles', ios, iom, .false., st)
+    rewind(u); read(u, nml=steric, iostat=ios, iomsg=iom)
+    call group_status(path, 'steric', ios, iom, .false., st)
+    rewind(u); read(u, nml=physics, iostat=ios, iomsg=iom)
+    call group_status(path, 'physics', ios, iom, .false., st)
+    rewind(u); read(u, nml=field, iostat=ios, iomsg=iom)
+    call group_status(path, 'field', ios, iom, .false., st)
+    rewind(u); read(u, nml=walls, iostat=ios, iomsg=iom)
+    call group_status(path, 'walls', ios, iom, .false., st)
+    rewind(u); read(u, nml=integration, iostat=ios, iomsg=iom)
+    call group_status(path, 'integration', ios, iom, .false., st)
+    rewind(u); read(u, nml=output, iostat=ios, iomsg=iom)
+    call group_status(path, 'output', ios, iom, .false., st)
+    close(u)
+    if (st%code /= 0) return
+    self%kind = kind; self%title = title; self%l = l
+    self%n = n; self%placement = placement; self%min_distance = min_distance
+    self%velocities = velocities; self%speed = speed; self%temperature = temperature
+    self%seed = seed; self%type_id = type_id
+    self%law = law; self%p = p; self%u0 = u0; self%r_m = r_m; self%r_cut = r_cut
+    self%neighbour = neighbour; self%skin = skin; self%alpha = alpha
+    self%field_type = type; self%modulation = modulation; self%field_file = file
+    self%fl = field_t(f0x=f0x, f0y=f0y, gxx=gxx, gxy=gxy, gyx=gyx, gyy=gyy, x0=x0, y0=y0, &
+         amplitude=amplitude, ex=ex, ey=ey, kx=kx, ky=ky, omega=omega, phase=phase, &
+         power=power, r0=r0, r_core=r_core, mod_omega=mod_omega, mod_phase=mod_phase, &
+         mod_time=mod_time)
+    self%gamma = gamma; self%contact = contact
+    self%integrator = method; self%dt = dt; self%steps = steps
+    self%frame_every = frame_every; self%energy_every = energy_every
+    self%checkpoint_every = checkpoint_every; self%progress_every = progress_every
+    self%field_grid = field_grid; self%frames_format = frames_format
+  end subroutine read_file
+
+  subroutine validate(self, path, st)
+    class(lj_box_t), intent(inout) :: self
+    character(len=*), intent(in) :: path
+    type(status_t), intent(inout) :: st
+    associate (f => self%fl)
+      call check_choice(path, 'scene', 'kind', self%kind, ['lj_box'], st)
+      call check_real(path, 'box', 'l', self%l, 0.0_dp, 1.0e6_dp, .false., st)
+      call check_int(path, 'particles', 'n', self%n, 1_i8, 10000000_i8, st)
+      call check_choice(path, 'particles', 'placement', self%placement, &
+           [character(len=nm) :: 'random', 'lattice'], st)
+      call check_real(path, 'particles', 'min_distance', self%min_distance, 0.0_dp, &
+           self%l, .true., st)
+      call check_choice(path, 'particles', 'velocities', self%velocities, &
+           [character(len=nm) :: 'zero', 'speed', 'maxwell'], st)
+      call check_real(path, 'particles', 'speed', self%speed, 0.0_dp, 1.0e6_dp, .true., st)
+      call check_real(path, 'particles', 'temperature', self%temperature, 0.0_dp, 1.0e6_dp, &
+           .false., st)
+      call check_int(path, 'particles', 'seed', self%seed, 1_i8, 2147483647_i8, st)
+      call check_int(path, 'particles', 'type_id', self%type_id, 0_i8, 1000_i8, st)
+      if (self%type_id == 3) call set_error(st, exit_bad_input, trim(path)// &
+           ': &particles type_id = 3: allowed [0, 1000] except 3 (gns treats type 3 as '// &
+           'kinematic particles, not learned)')
+      call check_choice(path, 'steric', 'law', self%law, [character(len=nm) :: 'lj', 'none'], st)
+      call check_int(path, 'steric', 'p', self%p, 1_i8, 64_i8, st)
+      call check_real(path, 'steric', 'u0', self%u0, 0.0_dp, 1.0e6_dp, .true., st)
+      call check_real(path, 'steric', 'r_m', self%r_m, 0.0_dp, 2.0_dp, .false., st)
+      if (self%r_m == 2.0_dp) call set_error(st, exit_bad_input, trim(path)// &
+           ': &steric r_m = 2: allowed (0, 2) [a] (seed 000: r_m < 2a)')
+      call check_real(path, 'steric', 'r_cut', self%r_cut, self%r_m, 1.0e6_dp, .false., st)
+      call check_choice(path, 'steric', 'neighbour', self%neighbour, neighbour_names, st)
+      call check_real(path, 'steric', 'skin', self%skin, 0.0_dp, 1.0e3_dp, &
+           trim(self%neighbour) /= 'verlet', st)
+      call check_real(path, 'physics', 'alpha', self%alpha, 0.0_dp, 1.0e6_dp, .true., st)
+      call check_choice(path, 'field', 'type', self%field_type, field_shapes, st)
+      call check_choice(path, 'field', 'modulation', self%modulation, field_modulations, st)
+      call check_real(path, 'field', 'f0x', f%f0x, -big, big, .true., st)
+      call check_real(path, 'field', 'f0y', f%f0y, -big, big, .true., st)
+      call check_real(path, 'field', 'gxx', f%gxx, -big, big, .true., st)
+      call check_real(path, 'field', 'gxy', f%gxy, -big, big, .true., st)
+      call check_real(path, 'field', 'gyx', f%gyx, -big, big, .true., st)
+      call check_real(path, 'field', 'gyy', f%gyy, -big, big, .true., st)
+      call check_real(path, 'field', 'x0', f%x0, -big, big, .true., st)
+      call check_real(path, 'field', 'y0', f%y0, -big, big, .true., st)
+      call check_real(path, 'field', 'amplitude', f%amplitude, -big, big, .true., st)
+      call check_real(path, 'field', 'ex', f%ex, -big, big, .true., st)
+      call check_real(path, 'field', 'ey', f%ey, -big, big, .true., st)
+      call check_real(path, 'field', 'kx', f%kx, -big, big, .true., st)
+      call check_real(path, 'field', 'ky', f%ky, -big, big, .true., st)
+      call check_real(path, 'field', 'omega', f%omega, -big, big, .true., st)
+      call check_real(path, 'field', 'phase', f%phase, -big, big, .true., st)
+      call check_real(path, 'field', 'power', f%power, -10.0_dp, 10.0_dp, .true., st)
+      call check_real(path, 'field', 'r0', f%r0, 0.0_dp, big, .false., st)
+      call check_real(path, 'field', 'r_core', f%r_core, 0.0_dp, big, .false., st)
+      call check_real(path, 'field', 'mod_omega', f%mod_omega, -big, big, .true., st)
+      call check_real(path, 'field', 'mod_phase', f%mod_phase, -big, big, .true., st)
+      call check_real(path, 'field', 'mod_time', f%mod_time, 0.0_dp, big, .false., st)
+      call check_real(path, 'walls', 'gamma', self%gamma, 0.0_dp, 1.0_dp, .false., st)
+      call check_choice(path, 'walls', 'contact', self%contact, &
+           [character(len=nm) :: 'surface', 'centre'], st)
+      call check_choice(path, 'integration', 'method', self%integrator, method_names, st)
+      call check_real(path, 'integration', 'dt', self%dt, 0.0_dp, 1.0e3_dp, .false., st)
+      call check_int(path, 'integration', 'steps', self%steps, 1_i8, max_steps, st)
+      call check_int(path, 'output', 'frame_every', self%frame_every, 0_i8, max_steps, st)
+      call check_int(path, 'output', 'energy_every', self%energy_every, 0_i8, max_steps, st)
+      call check_int(path, 'output', 'checkpoint_every', self%checkpoint_every, 0_i8, &
+           max_steps, st)
+      call check_int(path, 'output', 'progress_every', self%progress_every, 0_i8, max_steps, st)
+      call check_int(path, 'output', 'field_grid', self%field_grid, 0_i8, 1000_i8, st)
+      call check_choice(path, 'output', 'frames_format', self%frames_format, &
+           [character(len=nm) :: 'text', 'binary', 'both'], st)
+      if (st%code /= 0) return
+      if (trim(self%contact) == 'surface' .and. self%l <= 2) call set_error(st, &
+           exit_bad_input, trim(path)//': &box l = '//real_str(self%l)//': allowed (2, 1e6] '// &
+           'with &walls contact = ''surface'' (the centres stay a away from the walls)')
+      f%shape = choice_index(self%field_type, field_shapes) - 1       ! codes from 0
+      f%modulation = choice_index(self%modulation, field_modulations) - 1
+      select case (trim(self%field_type))
+      case ('standing_wave', 'travelling_wave')
+        if (f%ex == 0 .and. f%ey == 0) call set_error(st, exit_bad_input, trim(path)// &
+             ': &field ex = ey = 0: the wave''s force direction (ex, ey) must be non-zero')
+      case ('table')
+        if (len_trim(self%field_file) == 0) call set_error(st, exit_bad_input, trim(path)// &
+             ': &field file: required with type = ''table'' (a tabulated field)')
+      end select
+    end associate
+  end subroutine validate
+
+  !> Derived quantities: the law, the field (table read), walls, the neighbour list.
+  subroutine build(self, st)
+    class(lj_box_t), intent(inout) :: self
+    type(status_t), intent(inout) :: st
+    real(dp) :: norm, need_lo, need_hi
+    associate (f => self%fl)
+      if (f%shape == 3 .or. f%shape == 4) then
+        norm = sqrt(f%ex**2 + f%ey**2)
+        f%ex = f%ex/norm
+        f%ey = f%ey/norm
+      end if
+      if (trim(self%contact) == 'surface') then
+        self%lo = 1; self%hi = self%l - 1
+      else
+        self%lo = 0; self%hi = self%l
+      end if
+      if (trim(self%field_type) == 'table') then
+        call field_read_table(f, trim(self%field_file), st)
+        if (st%code /= 0) return
+        call file_crc64(trim(self%field_file), self%table_crc, st)
+        if (st%code /= 0) return
+        need_lo = self%lo; need_hi = self%hi
+        if (f%gx0 > need_lo .or. f%gx0 + (f%nx - 1)*f%gdx < need_hi .or. &
+             f%gy0 > need_lo .or. f%gy0 + (f%ny - 1)*f%gdy < need_hi) then
+          call set_error(st, exit_bad_input, '&field file = '''//trim(self%field_file)// &
+               ''': the grid ['//real_str(f%gx0)//', '//real_str(f%gx0 + (f%nx - 1)*f%gdx)// &
+               '] x ['//real_str(f%gy0)//', '//real_str(f%gy0 + (f%ny - 1)*f%gdy)// &
+               '] [a] does not cover the reachable box ['//real_str(need_lo)//', '// &
+               real_str(need_hi)//']^2')
+          return
+        end if
+      end if
+    end associate
+    self%method = method_codes(choice_index(self%integrator, method_names))
+    self%steric_on = trim(self%law) == 'lj'
+    self%lj = lj_law(int(self%p), self%u0, self%r_m, self%r_cut)
+    self%strategy = neighbour_codes(choice_index(self%neighbour, neighbour_names))
+    call init_threads()
+    call state_allocate(self%s, int(self%n))
+    if (self%steric_on .and. self%strategy /= nb_all_pairs) then
+      call nlist_setup(self%nl, self%strategy, self%r_cut, self%skin, self%l, self%l, &
+           int(self%n))
+      self%nl%with_owner = .true.
+    end if
+  end subroutine build
+
+  !> Seeded positions (random sequential addition at min_distance, or a square lattice)
+  !> and velocities (zero, a speed in uniform random directions, or Maxwellian at kT).
+  subroutine initial_state(self, path, st)
+    class(lj_box_t), intent(inout) :: self
+    character(len=*), intent(in) :: path
+    type(status_t), intent(inout) :: st
+    real(dp), parameter :: two_pi = 6.283185307179586476925286766559_dp
+    real(dp) :: u(2), span, a
+    integer :: i, placed, m, side
+    call seed_rng(int(self%seed))
+    associate (s => self%s)
+      span = self%hi - self%lo
+      if (trim(self%placement) == 'lattice') then
+        side = ceiling(sqrt(real(self%n, dp)) - 1.0e-9_dp)
+        a = span/side
+        if (a < self%min_distance) then
+          call set_error(st, exit_bad_input, trim(path)//': &particles placement = '// &
+               '''lattice'': spacing '//real_str(a)//' a < min_distance = '// &
+               real_str(self%min_distance)//' (lower n or min_distance, or enlarge &box l)')
+          return
+        end if
+        do i = 1, s%n
+          s%x(i) = self%lo + (mod(i - 1, side) + 0.5_dp)*a
+          s%y(i) = self%lo + ((i - 1)/side + 0.5_dp)*a
+        end do
+      else
+        call random_addition(self, placed)
+        if (placed < s%n) then
+          call set_error(st, exit_bad_input, trim(path)//': &particles n = '// &
+               int_str(self%n)//', min_distance = '//real_str(self%min_distance)// &
+               ': random addition placed only '//int_str(int(placed, i8))//' particles in '// &
+               'the box (lower n or min_distance, enlarge &box l, or placement = ''lattice'')')
+          return
+        end if
+      end if
+      select case (trim(self%velocities))
+      case ('speed')
+        do i = 1, s%n
+          call random_number(u(1))
+          s%vx(i) = self%speed*cos(two_pi*u(1))
+          s%vy(i) = self%speed*sin(two_pi*u(1))
+        end do
+      case ('maxwell')
+        do i = 1, s%n
+          do m = 1, 2
+            call random_number(u)
+            u(1) = 1 - u(1)                ! (0, 1]
+            a = sqrt(-2*log(u(1)))*sqrt(self%temperature)
+            if (m == 1) then
+              s%vx(i) = a*cos(two_pi*u(2))
+            else
+              s%vy(i) = a*cos(two_pi*u(2))
+            end if
+          end do
+        end do
+      case default
+        s%vx = 0; s%vy = 0
+      end select
+      s%mass = 1; s%mu = 1; s%wsin = 0
+      s%step = 0
+      s%t = 0
+      s%has_previous = .false.
+    end associate
+    self%wall_hits = 0
+  end subroutine initial_state
+
+  !> Random sequential addition with a cell grid of side >= min_distance: each particle
+  !> gets up to 20 000 tries. placed = how many found room.
+  subroutine random_addition(self, placed)
+    class(lj_box_t), intent(inout) :: self
+    integer, intent(out) :: placed
+    integer :: nc, i, tries, cx, cy, jx, jy, j
+    integer, allocatable :: head(:), next(:)
+    real(dp) :: u(2), span, cs, d2, xi, yi
+    logical :: ok
+    associate (s => self%s)
+      span = self%hi - self%lo
+      nc = max(1, min(4096, int(span/max(self%min_distance, 1.0e-300_dp))))
+      cs = span/nc
+      allocate(head(nc*nc), next(s%n))
+      head = 0
+      d2 = self%min_distance**2
+      placed = 0
+      do i = 1, s%n
+        ok = .false.
+        do tries = 1, 20000
+          call random_number(u)
+          xi = self%lo + span*u(1)
+          yi = self%lo + span*u(2)
+          cx = min(nc - 1, int((xi - self%lo)/cs))
+          cy = min(nc - 1, int((yi - self%lo)/cs))
+          ok = .true.
+          do jy = max(0, cy - 1), min(nc - 1, cy + 1)
+            do jx = max(0, cx - 1), min(nc - 1, cx + 1)
+              j = head(1 + jx + nc*jy)
+              do while (j > 0 .and. ok)
+                if ((s%x(j) - xi)**2 + (s%y(j) - yi)**2 < d2) ok = .false.
+                j = next(j)
+              end do
+            end do
+          end do
+          if (ok) exit
+        end do
+        if (.not. ok) return
+        s%x(i) = xi
+        s%y(i) = yi
+        next(i) = head(1 + cx + nc*cy)
+        head(1 + cx + nc*cy) = i
+        placed = i
+      end do
+    end associate
+  end subroutine random_addition
+
+  !> Forces at the current step: steric pairs, field, drag [m g].
+  subroutine forces(self)
+    class(lj_box_t), intent(inout) :: self
+    logical, parameter :: no_r3 = .false.
+    associate (s => self%s, nl => self%nl)
+      s%fx = 0
+      s%fy = 0
+      self%r2min = huge(1.0_dp)
+      if (self%steric_on) then
+        if (self%strategy == nb_all_pairs) then
+          call pair_forces_all(s%n, s%x, s%y, s%mu, s%wsin, 1.0_dp, no_r3, s%fx, s%fy, &
+               s%s3, self%r2min, law=self%lj)
+        else
+          call nlist_refresh(nl, s)
+          call pair_forces_list(s%n, s%x, s%y, s%mu, s%wsin, 1.0_dp, self%r_cut**2, &
+               0.0_dp, .true., no_r3, nl%start, nl%nbr, s%fx, s%fy, s%s3, self%r2min, &
+               law=self%lj, own=nl%own)
+          nl%evaluated = nl%evaluated + nl%pairs
+        end if
+      end if
+      call field_add(self%fl, s%t, s%n, s%x, s%y, s%fx, s%fy)
+      if (self%alpha > 0) call viscous_friction(s%n, s%mass, 4.5_dp*self%alpha, s%vx, s%vy, &
+           s%fx, s%fy)
+    end associate
+  end subroutine forces
+
+  !> Kinetic energy, steric and field potential energies [m g a] (velocities of the step).
+  subroutine energies(self, ek, up, uf)
+    class(lj_box_t), intent(in) :: self
+    real(dp), intent(out) :: ek, up, uf
+    associate (s => self%s)
+      ek = 0.5_dp*sum(s%vx**2 + s%vy**2)
+      up = 0
+      if (self%steric_on) then
+        if (self%strategy == nb_all_pairs) then
+          up = lj_energy(s%n, s%x, s%y, self%lj)
+        else
+          up = lj_energy(s%n, s%x, s%y, self%lj, self%nl%start, self%nl%nbr)
+        end if
+      end if
+      uf = field_potential(self%fl, s%t, s%n, s%x, s%y)
+    end associate
+  end subroutine energies
+
+  function scene_text(self) result(text)
+    class(lj_box_t), intent(in) :: self
+    character(len=:), allocatable :: text
+    character(len=1), parameter :: nl = achar(10)
+    text = '! resolved scene: kind lj_box (seed 000). '//units//nl//'&scene'//nl
+    call put_str(text, 'kind', self%kind, '')
+    call put_str(text, 'title', self%title, '')
+    text = text//'/'//nl//'&box'//nl
+    call put_real(text, 'l', self%l, 'a: the box [0, L]^2')
+    text = text//'/'//nl//'&particles'//nl
+    call put_int(text, 'n', self%n, 'particles')
+    call put_str(text, 'placement', self%placement, '''random'' | ''lattice''')
+    call put_real(text, 'min_distance', self%min_distance, 'a: between centres at t = 0')
+    call put_str(text, 'velocities', self%velocities, '''zero'' | ''speed'' | ''maxwell''')
+    call put_real(text, 'speed', self%speed, 'a/T (velocities = ''speed'')')
+    call put_real(text, 'temperature', self%temperature, 'm g a (kT, velocities = ''maxwell'')')
+    call put_int(text, 'seed', self%seed, 'RNG of the initial state')
+    call put_int(text, 'type_id', self%type_id, 'particle type in frames.dat')
+    text = text//'/'//nl//'&steric'//nl
+    call put_str(text, 'law', self%law, '''lj'' (eqs. 3-5) | ''none''')
+    call put_int(text, 'p', self%p, 'exponent (integer)')
+    call put_real(text, 'u0', self%u0, 'm g a: well depth')
+    call put_real(text, 'r_m', self%r_m, 'a: linear core below')
+    call put_real(text, 'r_cut', self%r_cut, 'a: R, zero beyond')
+    call put_str(text, 'neighbour', self%neighbour, '''verlet'' | ''cells'' | ''all_pairs''')
+    call put_real(text, 'skin', self%skin, 'a: Verlet list skin')
+    text = text//'/'//nl//'&physics'//nl
+    call put_real(text, 'alpha', self%alpha, 'drag -(9/2) alpha v, eq. 7')
+    text = text//'/'//nl//'&field'//nl
+    associate (f => self%fl)
+      call put_str(text, 'type', self%field_type, '')
+      call put_real(text, 'f0x', f%f0x, 'm g')
+      call put_real(text, 'f0y', f%f0y, 'm g')
+      call put_real(text, 'gxx', f%gxx, 'm g/a')
+      call put_real(text, 'gxy', f%gxy, 'm g/a')
+      call put_real(text, 'gyx', f%gyx, 'm g/a')
+      call put_real(text, 'gyy', f%gyy, 'm g/a')
+      call put_real(text, 'x0', f%x0, 'a')
+      call put_real(text, 'y0', f%y0, 'a')
+      call put_real(text, 'amplitude', f%amplitude, 'm g (vortex: m g a)')
+      call put_real(text, 'ex', f%ex, 'wave force direction (normalised)')
+      call put_real(text, 'ey', f%ey, '')
+      call put_real(text, 'kx', f%kx, '1/a')
+      call put_real(text, 'ky', f%ky, '1/a')
+      call put_real(text, 'omega', f%omega, '1/T')
+      call put_real(text, 'phase', f%phase, 'rad')
+      call put_real(text, 'power', f%power, 'point field exponent')
+      call put_real(text, 'r0', f%r0, 'a')
+      call put_real(text, 'r_core', f%r_core, 'a')
+      call put_str(text, 'modulation', self%modulation, '''none'' | ''cos'' | ''ramp''')
+      call put_real(text, 'mod_omega', f%mod_omega, '1/T')
+      call put_real(text, 'mod_phase', f%mod_phase, 'rad')
+      call put_real(text, 'mod_time', f%mod_time, 'T (ramp)')
+      call put_str(text, 'file', self%field_file, 'tabulated field (type = ''table'')')
+    end associate
+    text = text//'/'//nl//'&walls'//nl
+    call put_real(text, 'gamma', self%gamma, 'kinetic energy kept per wall hit, (0, 1]')
+    call put_str(text, 'contact', self%contact, '''surface'' (centre within a) | ''centre''')
+    text = text//'/'//nl//'&integration'//nl
+    call put_str(text, 'method', self%integrator, &
+         '''euler'' | ''semi_implicit_euler'' | ''velocity_verlet''')
+    call put_real(text, 'dt', self%dt, 'T')
+    call put_int(text, 'steps', self%steps, '')
+    text = text//'/'//nl//'&output'//nl
+    call put_int(text, 'frame_every', self%frame_every, 'steps (0 = off)')
+    call put_int(text, 'energy_every', self%energy_every, 'steps (0 = off)')
+    call put_int(text, 'checkpoint_every', self%checkpoint_every, 'steps (0 = none)')
+    call put_int(text, 'progress_every', self%progress_every, 'steps (0 = about 200 lines)')
+    call put_int(text, 'field_grid', self%field_grid, 'field.dat points per side (0 = off)')
+    call put_str(text, 'frames_format', self%frames_format, &
+         'text: frames.dat, binary: frames.bin, both')
+    text = text//'/'//nl
+  end function scene_text
+
+  subroutine open_outputs(self, dir, append, st)
+    class(lj_box_t), intent(inout) :: self
+    character(len=*), intent(in) :: dir
+    logical, intent(in) :: append
+    type(status_t), intent(inout) :: st
+    if (binary_frames(self)) call frames_open(self%frames_bin, trim(dir)//'/frames.bin', &
+         int(self%n), frame_cols, frame_units, ['i4', 'i4', 'f8', 'f8', 'f8', 'f8'], 'step', &
+         'T', '"kind": "lj_box", "box": ['//json_real(self%l)//', '//json_real(self%l)// &
+         '], "radius": 1', append, st)
+    if (text_frames(self)) call table_open(self%frames, dir, 'frames.dat', &
+         '# frames.dat: Lennard-Jones box (seed 000), one row per particle per frame. '// &
+         units, '# step t[T] id type x[a] y[a] vx[a/T] vy[a/T]', append, st)
+    if (self%energy_every > 0) call table_open(self%energy, dir, 'energy.dat', &
+         '# energy.dat: energies summed over the particles (u_field 0 for fields '// &
+         'without a potential); wall_hits cumulative; r_min the closest listed pair. '// &
+         units, '# step t[T] e_kin[mga] u_pair[mga] u_field[mga] wall_hits r_min[a]', &
+         append, st)
+    if (self%field_grid > 0) call table_open(self%field_out, dir, 'field.dat', &
+         '# field.dat: F_ext at the cell centres of a field_grid^2 grid over the box, at '// &
+         'step 0 and, for a time-dependent field, at every frame. '//units, &
+         '# step t[T] x[a] y[a] fx[mg] fy[mg]', append, st)
+    self%writing = st%code == 0
+  end subroutine open_outputs
+
+  subroutine output_files(self, names, n)
+    class(lj_box_t), intent(in) :: self
+    character(len=fname_len), intent(out) :: names(max_out_files)
+    integer, intent(out) :: n
+    n = 0
+    names = ''
+    call add_output(names, n, text_frames(self), 'frames.dat')
+    call add_output(names, n, binary_frames(self), 'frames.bin')
+    call add_output(names, n, self%energy_every > 0, 'energy.dat')
+    call add_output(names, n, self%field_grid > 0, 'field.dat')
+  end subroutine output_files
+
+  !> Frames as text (frames.dat) / binary (frames.bin): &output frames_format.
+  logical function text_frames(self)
+    class(lj_box_t), intent(in) :: self
+    text_frames = self%frame_every > 0 .and. trim(self%frames_format) /= 'binary'
+  end function text_frames
+
+  logical function binary_frames(self)
+    class(lj_box_t), intent(in) :: self
+    binary_frames = self%frame_every > 0 .and. trim(self%frames_format) /= 'text'
+  end function binary_frames
+
+  logical function due(every, step, last)
+    integer(i8), intent(in) :: every, step
+    logical, intent(in) :: last
+    due = every > 0
+    if (due) due = last .or. mod(step, every) == 0
+  end function due
+
+  !> The rows of the current step that are due (forces already computed).
+  subroutine write_rows(self, last, st)
+    class(lj_box_t), intent(inout) :: self
+    logical, intent(in) :: last
+    type(status_t), intent(inout) :: st
+    logical :: o_frm, o_en
+    integer :: i, k
+    integer, allocatable :: at(:)
+    real(dp) :: ek, up, uf, rmin
+    character(len=240) :: line
+    if (.not. self%writing) return
+    associate (s => self%s)
+      o_frm = due(self%frame_every, s%step, last)
+      o_en = due(self%energy_every, s%step, last)
+      if (self%field_grid > 0 .and. (s%step == 0 .or. (o_frm .and. .not. &
+           field_static(self%fl)))) call write_field(self, st)
+      if (.not. (o_frm .or. o_en)) return
+      call finish_velocity(self%method, self%dt, s)
+      if (o_frm) then
+        allocate(at(s%n))
+        at(s%id) = [(k, k = 1, s%n)]          ! rows in particle-id order
+        if (text_frames(self)) then
+          do k = 1, s%n
+            i = at(k)
+            write(line, '(i0,1x,'//rfmt//',1x,i0,1x,i0,4(1x,'//rfmt//'))') s%step, s%t, &
+                 s%id(i), self%type_id, s%x(i), s%y(i), s%vx(i), s%vy(i)
+            call table_line(self%frames, trim(line), st)
+          end do
+        end if
+        if (binary_frames(self)) then
+          call frames_begin(self%frames_bin, s%step, s%t, st)
+          call frames_put(self%frames_bin, [(k, k = 1, s%n)], st)
+          call frames_put(self%frames_bin, [(int(self%type_id), k = 1, s%n)], st)
+          call frames_put(self%frames_bin, s%x(at), st)
+          call frames_put(self%frames_bin, s%y(at), st)
+          call frames_put(self%frames_bin, s%vx(at), st)
+          call frames_put(self%frames_bin, s%vy(at), st)
+          call frames_end(self%frames_bin, st)
+        end if
+      end if
+      if (o_en) then
+        call energies(self, ek, up, uf)
+        rmin = -1
+        if (self%steric_on) rmin = sqrt(min(self%r2min, (self%r_cut + self%skin)**2))
+        write(line, '(i0,4(1x,'//rfmt//'),1x,i0,1x,'//rfmt//')') s%step, s%t, ek, up, uf, &
+             self%wall_hits, rmin
+        call table_line(self%energy, trim(line), st)
+      end if
+    end associate
+  end subroutine write_rows
+
+  !> F_ext at the cell centres (i - 1/2) L/G, (j - 1/2) L/G of the grid, x fastest.
+  subroutine write_field(self, st)
+    class(lj_box_t), intent(inout) :: self
+    type(status_t), intent(inout) :: st
+    integer :: g, i, j, k
+    real(dp), allocatable :: gx(:), gy(:), fx(:), fy(:)
+    character(len=200) :: line
+    g = int(self%field_grid)
+    allocate(gx(g*g), gy(g*g), fx(g*g), fy(g*g))
+    do j = 1, g
+      do i = 1, g
+        gx(i + g*(j - 1)) = (i - 0.5_dp)*self%l/g
+        gy(i + g*(j - 1)) = (j - 0.5_dp)*self%l/g
+      end do
+    end do
+    fx = 0; fy = 0
+    call field_add(self%fl, self%s%t, g*g, gx, gy, fx, fy)
+    do k = 1, g*g
+      write(line, '(i0,5(1x,'//rfmt//'))') self%s%step, self%s%t, gx(k), gy(k), fx(k), fy(k)
+      call table_line(self%field_out, trim(line), st)
+    end do
+  end subroutine write_field
+
+  !> One time step: forces f_n, rows of step n, x_n -> x_{n+1}, walls, guards.
+  subroutine advance(self, st)
+    class(lj_box_t), intent(inout) :: self
+    type(status_t), intent(inout) :: st
+    integer :: bad
+    associate (s => self%s)
+      s%t = real(s%step, dp)*self%dt
+      if (self%alpha > 0) call estimate_velocity(self%method, self%dt, s)
+      call forces(self)
+      call write_rows(self, .false., st)
+      if (st%code /= 0) return
+      call advance_step(self%method, self%dt, s)
+      if (self%method == int_velocity_verlet) then   ! xp, yp carry v_{n+1/2}
+        call mirror_reflect(s%n, s%x, s%y, s%xp, s%yp, self%lo, self%hi, self%gamma, &
+             self%wall_hits, bad)
+      else
+        call mirror_reflect(s%n, s%x, s%y, s%vx, s%vy, self%lo, self%hi, self%gamma, &
+             self%wall_hits, bad)
+      end if
+      s%step = s%step + 1
+      s%t = real(s%step, dp)*self%dt
+      if (bad > 0) call set_error(st, exit_numerical, 'lj_box: particle '// &
+           int_str(int(s%id(bad), i8))//' left the box at step '//int_str(s%step)// &
+           ' (x, y = '//real_str(s%x(bad))//', '//real_str(s%y(bad))//' a): it moved '// &
+           'further than the box in one step or the state is not finite; &integration dt = '// &
+           real_str(self%dt)//' T is too large for these forces (explicit Euler gains '// &
+           'energy at every step: prefer semi_implicit_euler or velocity_verlet)')
+    end associate
+  end subroutine advance
+
+  subroutine finish(self, st)
+    class(lj_box_t), intent(inout) :: self
+    type(status_t), intent(inout) :: st
+    if (self%alpha > 0) call estimate_velocity(self%method, self%dt, self%s)
+    call forces(self)
+    call write_rows(self, .true., st)
+  end subroutine finish
+
+  subroutine close_outputs(self, flush_only, st)
+    class(lj_box_t), intent(inout) :: self
+    logical, intent(in) :: flush_only
+    type(status_t), intent(inout) :: st
+    call table_flush(self%frames, st)
+    call table_flush(self%energy, st)
+    call table_flush(self%field_out, st)
+    call frames_flush(self%frames_bin, st)
+    if (flush_only) return
+    call frames_close(self%frames_bin, st)
+    call table_close(self%frames, st)
+    call table_close(self%energy, st)
+    call table_close(self%field_out, st)
+    self%writing = .false.
+  end subroutine close_outputs
+
+  !> The bed's payload (state, integrator history, neighbour list, RNG), then the wall
+  !> hits and the field table's CRC-64 (a changed table file refuses the resume).
+  subroutine save_state(self, w)
+    class(lj_box_t), intent(in) :: self
+    type(ckpt_writer_t), intent(inout) :: w
+    integer(int8), parameter :: b(0) = [integer(int8) ::]
+    call checkpoint_save(w, self%s, self%nl, self%none)
+    call ckpt_put(w, [transfer(self%wall_hits, b), transfer(self%table_crc, b)])
+  end subroutine save_state
+
+  subroutine restore_state(self, u, st)
+    class(lj_box_t), intent(inout) :: self
+    integer, intent(in) :: u
+    type(status_t), intent(inout) :: st
+    integer :: ios
+    integer(i8) :: crc
+    call checkpoint_restore(u, self%s, self%nl, self%none, st)
+    if (st%code /= 0) return
+    if (self%nl%valid) call nlist_owners(self%nl, self%s%n)
+    read(u, iostat=ios) self%wall_hits, crc
+    if (ios /= 0 .or. self%s%step < 0 .or. self%s%step > self%steps) then
+      call set_error(st, exit_io, 'checkpoint: payload does not match the scene')
+    else if (crc /= self%table_crc) then
+      call set_error(st, exit_io, 'checkpoint: the field table '''//trim(self%field_file)// &
+           ''' changed since the checkpoint (CRC-64 differs)')
+    end if
+  end subroutine restore_state
+
+  subroutine counters(self, done, total, t)
+    class(lj_box_t), intent(in) :: self
+    integer(i8), intent(out) :: done, total
+    real(dp), intent(out) :: t
+    done = self%s%step
+    total = self%steps
+    t = real(self%s%step, dp)*self%dt
+  end subroutine counters
+
+  function progress_text(self) result(s)
+    class(lj_box_t), intent(in) :: self
+    character(len=:), allocatable :: s
+    character(len=30) :: buf
+    write(buf, '(es11.4)') 0.5_dp*sum(self%s%vx**2 + self%s%vy**2)
+    s = 'E_kin '//trim(adjustl(buf))
+  end function progress_text
+
+  function json_fields(self) result(text)
+    class(lj_box_t), intent(in) :: self
+    character(len=:), allocatable :: text
+    character(len=1), parameter :: nl = achar(10)
+    text = '  "n_particles": '//int_str(self%n)//','//nl// &
+         '  "wall_hits": '//int_str(self%wall_hits)//','//nl// &
+         '  "list_builds": '//int_str(self%nl%builds)//','//nl// &
+         '  "pairs_evaluated": '//int_str(self%nl%evaluated)//','//nl// &
+         '  "field_conservative": '//trim(merge('true ', 'false', &
+         field_has_potential(self%fl)))//','//nl// &
+         '  "units": {"length": "a", "time": "T = sqrt(a/g)", "mass": "m", '// &
+         '"force": "m g", "energy": "m g a"},'//nl
+  end function json_fields
+
+end module lj_box
