@@ -67,6 +67,7 @@ n5/n6/n7/Psi6 of the frame nearest to maximum compression.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import hashlib
 import importlib.util
 import inspect
@@ -80,7 +81,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
-from typing import Any, Callable, Iterable, Mapping, Sequence
+from typing import Any, Callable, Iterable, Iterator, Mapping, Sequence
 
 import pandas as pd
 
@@ -98,6 +99,7 @@ SEED_KEY = "particles.seed"
 MANIFEST = "manifest.json"
 RESULTS = "results"
 STALE_GRACE_S = 30.0  # s: a 'running' run.json younger than this may belong to a dying engine
+KEEP_EVERY_S = 5.0  # s: how often a Slurm sweep re-submits jobs that ended (see _JobKeeper)
 RESUMABLE = ("running", "interrupted", "paused")  # run.json statuses a checkpoint can continue
 _TOML_KEYS = {"base", "out", "seeds", "grid", "set", "points", "description", "metrics"}
 
@@ -549,6 +551,38 @@ def _make_cluster(kind: str, n_workers: int | None, kwargs: Mapping[str, Any], n
     raise ValueError(f"cluster must be 'local' or 'slurm', got {kind!r}")
 
 
+class _JobKeeper:
+    """Keeps ``n`` Slurm jobs: a job that ends (scancel, preemption, a node failure,
+    its walltime) is submitted again.
+
+    dask-jobqueue does not do this by itself: ``SLURMCluster.scale(n)`` submits n jobs
+    once; a worker whose job ends is forgotten by the cluster after
+    ``distributed.deploy.lost-worker-timeout`` and only the next ``scale`` call
+    submits a new job for it. Without this a sweep whose jobs were all cancelled
+    waits forever. Every KEEP_EVERY_S seconds (a daemon thread) calls ``scale(n)``
+    again, which changes nothing while all n jobs are there.
+    """
+
+    def __init__(self, cluster: Any, n: int) -> None:
+        import threading
+
+        self.cluster, self.n = cluster, n
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._loop, name="pyorch-slurm-keeper", daemon=True)
+        self._thread.start()
+
+    def _loop(self) -> None:
+        while not self._stop.wait(KEEP_EVERY_S):
+            try:
+                self.cluster.scale(self.n)
+            except Exception as exc:  # a closing cluster: nothing left to keep
+                print(f"pyorch sweep: could not re-submit Slurm jobs: {exc}", file=sys.stderr)
+
+    def stop(self) -> None:
+        self._stop.set()
+        self._thread.join()
+
+
 class _Executor:
     """Context manager yielding a distributed Client; closes what it created."""
 
@@ -557,6 +591,7 @@ class _Executor:
         self.client, self.address, self.kind = client, address, kind
         self.n_workers, self.kwargs, self.n_points = n_workers, dict(cluster_kwargs or {}), n_points
         self._owned: list[Any] = []
+        self._keeper: _JobKeeper | None = None
         #: workers expected but maybe not started yet (Slurm jobs in the queue)
         self.floor = _slurm_workers(n_workers, n_points) if client is None and not address \
             and kind == "slurm" else 0
@@ -572,10 +607,14 @@ class _Executor:
             cluster = _make_cluster(self.kind, self.n_workers, self.kwargs, self.n_points)
             self._owned.append(cluster)
             client = Client(cluster)
+            if self.kind == "slurm":
+                self._keeper = _JobKeeper(cluster, self.floor)
         self._owned.insert(0, client)
         return client
 
     def __exit__(self, *exc: Any) -> None:
+        if self._keeper is not None:
+            self._keeper.stop()
         for obj in self._owned:
             obj.close()
 
@@ -681,6 +720,29 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     return p
 
 
+@contextlib.contextmanager
+def _sigterm_as_interrupt() -> Iterator[None]:
+    """SIGTERM (``kill``, ``timeout``, the end of a batch job running the sweep) stops the
+    sweep like Ctrl-C: the cluster it started is closed, so its Slurm jobs are cancelled
+    (their engines checkpoint on the SIGTERM Slurm sends) instead of lingering until
+    their death-timeout."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum: int, frame: Any) -> None:
+        raise KeyboardInterrupt(f"signal {signum}")
+
+    old = signal.signal(signal.SIGTERM, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, old)
+
+
 def cmd_sweep(args: argparse.Namespace) -> int:
     """Run ``pyorch sweep``: 0 if every point completed, 3 if some failed, 2 on a bad spec."""
     try:
@@ -689,8 +751,9 @@ def cmd_sweep(args: argparse.Namespace) -> int:
             print(f"{sweep.write_manifest()}")
             print(sweep.points().drop(columns=["overrides", "dir"]).to_string(index=False))
             return 0
-        df = sweep.run(scheduler_address=args.scheduler, cluster=args.cluster,
-                       n_workers=args.workers, progress=not args.no_progress)
+        with _sigterm_as_interrupt():
+            df = sweep.run(scheduler_address=args.scheduler, cluster=args.cluster,
+                           n_workers=args.workers, progress=not args.no_progress)
     except SceneError as exc:
         print(f"pyorch: error: {exc}", file=sys.stderr)
         return 2
