@@ -49,6 +49,10 @@ raises: a refused or failed point is a row with its status and message.
   edit account/queue/walltime), scaled to ``n_workers`` workers
   (default: min(points, 32)); ``cluster_kwargs`` are passed to SLURMCluster.
   The sweep directory must be on a file system shared with the compute nodes.
+  A job that ends early (scancel, preemption, walltime) is submitted again
+  (:class:`_JobKeeper`); SIGTERM to ``pyorch sweep`` cancels its jobs like Ctrl-C.
+  ``examples/slurm/`` + ``scripts/slurm_local.sh``: a one-node Slurm to try it on
+  (tests/test_slurm.py).
 
 Resuming: running a sweep again skips points whose ``run.json`` says
 ``completed``; a point left ``running`` (dead worker), ``interrupted``

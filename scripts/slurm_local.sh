@@ -39,11 +39,9 @@ install() {
      && command -v sbatch >/dev/null 2>&1 && command -v munged >/dev/null 2>&1; then
     return 0
   fi
-  [ "$(id -u)" = "0" ] || die "Slurm is not installed and this is not root: run as root (it uses apt-get)"
   command -v apt-get >/dev/null 2>&1 || die "Slurm is not installed and apt-get is missing (Debian/Ubuntu only)"
   say "installing munge + Slurm (slurm-wlm: slurmctld slurmd slurm-client) with apt-get"
   apt-get update -qq >/dev/null
-  # policy-rc.d: do not let the packages start daemons with their Debian defaults
   DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends \
     munge slurmctld slurmd slurm-client >/dev/null
 }
@@ -125,6 +123,11 @@ start_munge() {
 }
 
 start() {
+  if up && [ -f "$CONF" ] && head -1 "$CONF" | grep -qF "$MARK"; then
+    say "up: $(sinfo -h -o '%P %D nodes, %c CPUs/node, %m MB/node, %t' | head -1)"
+    return 0
+  fi
+  [ "$(id -u)" = "0" ] || die "the local Slurm is not running; start it as root (it installs with apt-get and starts daemons)"
   install
   mkdir -p "$RUN" "$SPOOL/ctld" "$SPOOL/d" "$LOG"
   write_conf
