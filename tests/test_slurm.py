@@ -11,8 +11,8 @@ run through the ``pyorch`` command exactly as the README's cluster section says:
    byte-identical to an uninterrupted run;
 2. the sweep is run again: every point is skipped, no engine runs;
 3. a fresh sweep whose running job is cancelled and whose client is stopped
-   (SIGTERM): the client cancels its jobs and exits; the next run of the sweep
-   resumes the killed point from its checkpoint, byte-identical again.
+   (SIGTERM): the client cancels its jobs and exits with 130 like on Ctrl-C; the next
+   run of the sweep resumes the killed point from its checkpoint, byte-identical again.
 
 The final energies are checked against the exact decay of a lightly damped
 oscillator, E(t)/E(0) = exp(-2 zeta omega t) to O(zeta).
@@ -234,7 +234,10 @@ def test_sweep_on_slurm_survives_scancel_and_resumes(slurm, tmp_path):
             rc = proc.wait(timeout=60)
         except subprocess.TimeoutExpired:
             pytest.fail(f"pyorch sweep did not stop within 60 s of SIGTERM\n{_diagnostics(spec)}")
-        assert rc != 0
+        # SIGTERM stops pyorch sweep like Ctrl-C (130, "pyorch: interrupted"), closing its
+        # cluster: its jobs are cancelled now rather than when the workers notice the lost
+        # scheduler (a pending job would only notice after starting and its death-timeout)
+        assert rc == 130, f"pyorch sweep exited {rc} on SIGTERM\n{_diagnostics(spec)}"
         deadline = time.monotonic() + 30.0
         while _squeue_ids() and time.monotonic() < deadline:
             time.sleep(0.5)
