@@ -42,7 +42,9 @@ from pyorch.sweep import Sweep
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "slurm"
 SCRIPT = ROOT / "scripts" / "slurm_local.sh"
-JOB_NAME = "pyorch-sweep"          # jobqueue.slurm.name of examples/slurm/jobqueue.yaml
+# examples/slurm/jobqueue.yaml names the jobs pyorch-sweep; this test's own name keeps its
+# clean-up (scancel --name) away from the jobs of anyone else's sweep on the same Slurm
+JOB_NAME = f"pyorch-sweep-test{os.getpid()}"
 PYORCH = Path(sys.executable).parent / "pyorch"
 SWEEP_TIMEOUT_S = 120.0            # one sweep of 4 points on 2 one-core jobs takes ~15 s
 OMEGA, T_END = 2.0 * math.pi, 1500.0   # examples/slurm/oscillator.nml
@@ -98,7 +100,8 @@ def _example_copy(where: Path) -> Path:
 
 def _start(spec: Path, workers: int) -> subprocess.Popen:
     """``DASK_CONFIG=examples/slurm pyorch sweep SPEC --cluster slurm --workers N --no-progress``."""
-    env = {**os.environ, "DASK_CONFIG": str(EXAMPLE), "PYTHONUNBUFFERED": "1"}
+    env = {**os.environ, "DASK_CONFIG": str(EXAMPLE), "DASK_JOBQUEUE__SLURM__NAME": JOB_NAME,
+           "PYTHONUNBUFFERED": "1"}
     with open(spec.parent / "client.log", "a") as log:
         return subprocess.Popen([str(PYORCH), "sweep", str(spec), "--cluster", "slurm",
                                  "--workers", str(workers), "--no-progress"],
