@@ -557,20 +557,23 @@ def _make_cluster(kind: str, n_workers: int | None, kwargs: Mapping[str, Any], n
 
 class _JobKeeper:
     """Keeps ``n`` Slurm jobs: a job that ends (scancel, preemption, a node failure,
-    its walltime) is submitted again.
+    its walltime), running or still pending, is submitted again.
 
     dask-jobqueue does not do this by itself: ``SLURMCluster.scale(n)`` submits n jobs
     once; a worker whose job ends is forgotten by the cluster after
     ``distributed.deploy.lost-worker-timeout`` and only the next ``scale`` call
-    submits a new job for it. Without this a sweep whose jobs were all cancelled
-    waits forever. Every KEEP_EVERY_S seconds (a daemon thread) calls ``scale(n)``
-    again, which changes nothing while all n jobs are there.
+    submits a new job for it; a job cancelled while pending (its worker never
+    connected) is never forgotten. Without this a sweep whose jobs were all
+    cancelled waits forever. Every KEEP_EVERY_S seconds (a daemon thread) drops the
+    jobs that left the queue before their worker was ever seen (``squeue``) and
+    calls ``scale(n)`` again, which changes nothing while all n jobs are there.
     """
 
     def __init__(self, cluster: Any, n: int) -> None:
         import threading
 
         self.cluster, self.n = cluster, n
+        self._seen: set[str] = set()  # job ids whose worker connected at some point
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._loop, name="pyorch-slurm-keeper", daemon=True)
         self._thread.start()
@@ -578,13 +581,52 @@ class _JobKeeper:
     def _loop(self) -> None:
         while not self._stop.wait(KEEP_EVERY_S):
             try:
+                self._drop_never_started()
                 self.cluster.scale(self.n)
             except Exception as exc:  # a closing cluster: nothing left to keep
                 print(f"pyorch sweep: could not re-submit Slurm jobs: {exc}", file=sys.stderr)
 
+    def _drop_never_started(self) -> None:
+        """Forget the cluster's jobs that are out of the queue and never had a worker."""
+        jobs = {name: str(getattr(job, "job_id", "") or "")
+                for name, job in list(self.cluster.workers.items())}
+        names = [str(w.get("name", "")) for w in self.cluster.scheduler_info.get("workers", {}).values()]
+        connected = {n for n in jobs if any(w == str(n) or w.startswith(f"{n}-") for w in names)}
+        self._seen.update(jobs[n] for n in connected if jobs[n])
+        suspects = {n: j for n, j in jobs.items() if j and j not in self._seen and n not in connected}
+        if not suspects:
+            return
+        queued = _queued_job_ids()
+        gone = {n: j for n, j in suspects.items() if queued is not None and j not in queued}
+        if gone:
+            self.cluster.loop.add_callback(self._forget, gone)
+
+    def _forget(self, gone: Mapping[Any, str]) -> None:
+        """(On the cluster's event loop.) Remove the jobs ``gone`` so that scale re-submits them."""
+        for name, job_id in gone.items():
+            job = self.cluster.workers.get(name)
+            if job is not None and str(getattr(job, "job_id", "")) == job_id:
+                print(f"pyorch sweep: Slurm job {job_id} left the queue before it started; "
+                      "submitting another", file=sys.stderr)
+                del self.cluster.workers[name]
+
     def stop(self) -> None:
         self._stop.set()
         self._thread.join()
+
+
+def _queued_job_ids() -> set[str] | None:
+    """Ids of this user's jobs in the Slurm queue (pending, running, completing); None if
+    squeue fails."""
+    import getpass
+    import subprocess
+
+    try:
+        res = subprocess.run(["squeue", "-h", "-o", "%i", "-u", getpass.getuser()],
+                             capture_output=True, text=True, timeout=30)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return set(res.stdout.split()) if res.returncode == 0 else None
 
 
 class _Executor:

@@ -5,7 +5,9 @@ slurmd; the sweep is examples/slurm/sweep.toml (4 points of 1000 oscillators,
 ~2.5 s each) with the dask-jobqueue settings of examples/slurm/jobqueue.yaml,
 run through the ``pyorch`` command exactly as the README's cluster section says:
 
-1. with one worker, its job is killed by ``scancel`` while a point runs: the engine
+0. with one worker whose job waits in the queue (a job holding the node), that job is
+   cancelled: pyorch sweep submits another (dask-jobqueue never notices);
+1. then, its job is killed by ``scancel`` while a point runs: the engine
    checkpoints on Slurm's SIGTERM, pyorch sweep submits a new job (without that the
    sweep would wait forever), the point is resumed in the same sweep and its output is
    byte-identical to an uninterrupted run;
@@ -46,6 +48,7 @@ SCRIPT = ROOT / "scripts" / "slurm_local.sh"
 # examples/slurm/jobqueue.yaml names the jobs pyorch-sweep; this test's own name keeps its
 # clean-up (scancel --name) away from the jobs of anyone else's sweep on the same Slurm
 JOB_NAME = f"pyorch-sweep-test{os.getpid()}"
+BLOCKER = f"{JOB_NAME}-blocker"
 PYORCH = Path(sys.executable).parent / "pyorch"
 SWEEP_TIMEOUT_S = 120.0            # one sweep of 4 points on 2 one-core jobs takes ~15 s
 
@@ -58,15 +61,43 @@ def _can_install() -> bool:
     return os.geteuid() == 0 and shutil.which("apt-get") is not None
 
 
-def _squeue_ids() -> list[int]:
-    """Job ids of this test's sweeps in the queue (pending, running, completing)."""
-    out = subprocess.run(["squeue", "-h", "--name", JOB_NAME, "-o", "%i"], capture_output=True,
-                         text=True, timeout=20, check=True).stdout
+def _squeue_ids(states: str | None = None) -> list[int]:
+    """Job ids of this test's sweeps in the queue (pending, running, completing, or ``states``)."""
+    cmd = ["squeue", "-h", "--name", JOB_NAME, "-o", "%i"] + (["-t", states] if states else [])
+    out = subprocess.run(cmd, capture_output=True, text=True, timeout=20, check=True).stdout
     return sorted(int(x) for x in out.split())
 
 
 def _cancel_ours() -> None:
-    subprocess.run(["scancel", "--name", JOB_NAME], capture_output=True, timeout=20)
+    for name in (JOB_NAME, BLOCKER):
+        subprocess.run(["scancel", "--name", name], capture_output=True, timeout=20)
+
+
+def _block_the_node() -> str:
+    """A job holding every CPU of the node, so the sweep's first job waits in the queue."""
+    cpus = subprocess.run(["sinfo", "-h", "-o", "%c"], capture_output=True, text=True,
+                          timeout=20, check=True).stdout.split()[0]
+    return subprocess.run(["sbatch", "--parsable", "-J", BLOCKER, "-c", cpus, "-o", "/dev/null",
+                           "--wrap", "sleep 300"], capture_output=True, text=True, timeout=20,
+                          check=True).stdout.strip().split(";")[0]
+
+
+def _cancel_pending_job(spec: Path) -> None:
+    """scancel the sweep's job while it is pending; wait for pyorch sweep to submit another."""
+    deadline = time.monotonic() + 60.0
+    first = []
+    while not first and time.monotonic() < deadline:
+        first = _squeue_ids("PENDING")
+        time.sleep(0.2)
+    assert len(first) == 1, f"no pending job of the sweep within 60 s\n{_diagnostics(spec)}"
+    subprocess.run(["scancel", str(first[0])], check=True, timeout=20)
+    deadline = time.monotonic() + 30.0
+    while time.monotonic() < deadline:
+        if any(j > first[0] for j in _squeue_ids()):
+            return
+        time.sleep(0.2)
+    pytest.fail(f"job {first[0]}, cancelled while pending, was not re-submitted within 30 s\n"
+                f"{_diagnostics(spec)}")
 
 
 @pytest.fixture(scope="module")
@@ -195,8 +226,11 @@ def test_sweep_on_slurm_survives_scancel_and_resumes(slurm, tmp_path):
     t_start = time.monotonic()
     # 1. the only job cancelled mid-point: a new job is submitted, the point resumes in this run
     spec = _example_copy(tmp_path / "a")
+    blocker = _block_the_node()
     proc = _start(spec, workers=1)
     try:
+        _cancel_pending_job(spec)  # 0. cancelled while still pending: submitted again
+        subprocess.run(["scancel", blocker], check=True, timeout=20)
         point, job = _kill_a_running_point(spec, proc)
         rc = _wait(proc, spec, "run 1 (one job cancelled)")
     finally:
