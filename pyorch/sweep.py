@@ -770,8 +770,9 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
 def _sigterm_as_interrupt() -> Iterator[None]:
     """SIGTERM (``kill``, ``timeout``, the end of a batch job running the sweep) stops the
     sweep like Ctrl-C: the cluster it started is closed, so its Slurm jobs are cancelled
-    (their engines checkpoint on the SIGTERM Slurm sends) instead of lingering until
-    their death-timeout."""
+    at once (their engines checkpoint on the SIGTERM Slurm sends). Otherwise a running
+    worker ends when it notices the lost scheduler (5-15 s on scripts/slurm_local.sh) and a
+    pending job only after it starts and waits out its death-timeout."""
     import signal
     import threading
 
