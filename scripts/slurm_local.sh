@@ -11,7 +11,8 @@
 # Needs root and apt-get (Debian/Ubuntu). Writes /etc/slurm/slurm.conf only if it is
 # absent or was written by this script (it refuses to touch a real cluster's config).
 # Daemons and state: /run/pyorch-slurm (pid files), /var/spool/pyorch-slurm, logs in
-# /var/log/pyorch-slurm. Everything listens on 127.0.0.1.
+# /var/log/pyorch-slurm. The daemons are addressed at 127.0.0.1 (they bind to every
+# interface, as Slurm does).
 set -euo pipefail
 
 CONF=/etc/slurm/slurm.conf
