@@ -49,6 +49,10 @@ raises: a refused or failed point is a row with its status and message.
   edit account/queue/walltime), scaled to ``n_workers`` workers
   (default: min(points, 32)); ``cluster_kwargs`` are passed to SLURMCluster.
   The sweep directory must be on a file system shared with the compute nodes.
+  A job that ends early (scancel, preemption, walltime) is submitted again
+  (:class:`_JobKeeper`); SIGTERM to ``pyorch sweep`` cancels its jobs like Ctrl-C.
+  ``examples/slurm/`` + ``scripts/slurm_local.sh``: a one-node Slurm to try it on
+  (tests/test_slurm.py).
 
 Resuming: running a sweep again skips points whose ``run.json`` says
 ``completed``; a point left ``running`` (dead worker), ``interrupted``
@@ -67,6 +71,7 @@ n5/n6/n7/Psi6 of the frame nearest to maximum compression.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import hashlib
 import importlib.util
 import inspect
@@ -80,7 +85,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
-from typing import Any, Callable, Iterable, Mapping, Sequence
+from typing import Any, Callable, Iterable, Iterator, Mapping, Sequence
 
 import pandas as pd
 
@@ -98,6 +103,7 @@ SEED_KEY = "particles.seed"
 MANIFEST = "manifest.json"
 RESULTS = "results"
 STALE_GRACE_S = 30.0  # s: a 'running' run.json younger than this may belong to a dying engine
+KEEP_EVERY_S = 5.0  # s: how often a Slurm sweep re-submits jobs that ended (see _JobKeeper)
 RESUMABLE = ("running", "interrupted", "paused")  # run.json statuses a checkpoint can continue
 _TOML_KEYS = {"base", "out", "seeds", "grid", "set", "points", "description", "metrics"}
 
@@ -559,6 +565,80 @@ def _make_cluster(kind: str, n_workers: int | None, kwargs: Mapping[str, Any], n
     raise ValueError(f"cluster must be 'local' or 'slurm', got {kind!r}")
 
 
+class _JobKeeper:
+    """Keeps ``n`` Slurm jobs: a job that ends (scancel, preemption, a node failure,
+    its walltime), running or still pending, is submitted again.
+
+    dask-jobqueue does not do this by itself: ``SLURMCluster.scale(n)`` submits n jobs
+    once; a worker whose job ends is forgotten by the cluster after
+    ``distributed.deploy.lost-worker-timeout`` and only the next ``scale`` call
+    submits a new job for it; a job cancelled while pending (its worker never
+    connected) is never forgotten. Without this a sweep whose jobs were all
+    cancelled waits forever. Every KEEP_EVERY_S seconds (a daemon thread) drops the
+    jobs that left the queue before their worker was ever seen (``squeue``) and
+    calls ``scale(n)`` again, which changes nothing while all n jobs are there.
+    """
+
+    def __init__(self, cluster: Any, n: int) -> None:
+        import threading
+
+        self.cluster, self.n = cluster, n
+        self._seen: set[str] = set()  # job ids whose worker connected at some point
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._loop, name="pyorch-slurm-keeper", daemon=True)
+        self._thread.start()
+
+    def _loop(self) -> None:
+        while not self._stop.wait(KEEP_EVERY_S):
+            try:
+                self._drop_never_started()
+                self.cluster.scale(self.n)
+            except Exception as exc:  # a closing cluster: nothing left to keep
+                print(f"pyorch sweep: could not re-submit Slurm jobs: {exc}", file=sys.stderr)
+
+    def _drop_never_started(self) -> None:
+        """Forget the cluster's jobs that are out of the queue and never had a worker."""
+        jobs = {name: str(getattr(job, "job_id", "") or "")
+                for name, job in list(self.cluster.workers.items())}
+        names = [str(w.get("name", "")) for w in self.cluster.scheduler_info.get("workers", {}).values()]
+        connected = {n for n in jobs if any(w == str(n) or w.startswith(f"{n}-") for w in names)}
+        self._seen.update(jobs[n] for n in connected if jobs[n])
+        suspects = {n: j for n, j in jobs.items() if j and j not in self._seen and n not in connected}
+        if not suspects:
+            return
+        queued = _queued_job_ids()
+        gone = {n: j for n, j in suspects.items() if queued is not None and j not in queued}
+        if gone:
+            self.cluster.loop.add_callback(self._forget, gone)
+
+    def _forget(self, gone: Mapping[Any, str]) -> None:
+        """(On the cluster's event loop.) Remove the jobs ``gone`` so that scale re-submits them."""
+        for name, job_id in gone.items():
+            job = self.cluster.workers.get(name)
+            if job is not None and str(getattr(job, "job_id", "")) == job_id:
+                print(f"pyorch sweep: Slurm job {job_id} left the queue before it started; "
+                      "submitting another", file=sys.stderr)
+                del self.cluster.workers[name]
+
+    def stop(self) -> None:
+        self._stop.set()
+        self._thread.join()
+
+
+def _queued_job_ids() -> set[str] | None:
+    """Ids of this user's jobs in the Slurm queue (pending, running, completing); None if
+    squeue fails."""
+    import getpass
+    import subprocess
+
+    try:
+        res = subprocess.run(["squeue", "-h", "-o", "%i", "-u", getpass.getuser()],
+                             capture_output=True, text=True, timeout=30)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return set(res.stdout.split()) if res.returncode == 0 else None
+
+
 class _Executor:
     """Context manager yielding a distributed Client; closes what it created."""
 
@@ -567,6 +647,7 @@ class _Executor:
         self.client, self.address, self.kind = client, address, kind
         self.n_workers, self.kwargs, self.n_points = n_workers, dict(cluster_kwargs or {}), n_points
         self._owned: list[Any] = []
+        self._keeper: _JobKeeper | None = None
         #: workers expected but maybe not started yet (Slurm jobs in the queue)
         self.floor = _slurm_workers(n_workers, n_points) if client is None and not address \
             and kind == "slurm" else 0
@@ -582,10 +663,14 @@ class _Executor:
             cluster = _make_cluster(self.kind, self.n_workers, self.kwargs, self.n_points)
             self._owned.append(cluster)
             client = Client(cluster)
+            if self.kind == "slurm":
+                self._keeper = _JobKeeper(cluster, self.floor)
         self._owned.insert(0, client)
         return client
 
     def __exit__(self, *exc: Any) -> None:
+        if self._keeper is not None:
+            self._keeper.stop()
         for obj in self._owned:
             obj.close()
 
@@ -697,6 +782,30 @@ def add_cluster_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
+@contextlib.contextmanager
+def _sigterm_as_interrupt() -> Iterator[None]:
+    """SIGTERM (``kill``, ``timeout``, the end of a batch job running the sweep) stops the
+    sweep like Ctrl-C: the cluster it started is closed, so its Slurm jobs are cancelled
+    at once (their engines checkpoint on the SIGTERM Slurm sends). Otherwise a running
+    worker ends when it notices the lost scheduler (5-15 s on scripts/slurm_local.sh) and a
+    pending job only after it starts and waits out its death-timeout."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum: int, frame: Any) -> None:
+        raise KeyboardInterrupt(f"signal {signum}")
+
+    old = signal.signal(signal.SIGTERM, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, old)
+
+
 def cmd_sweep(args: argparse.Namespace) -> int:
     """Run ``pyorch sweep``: 0 if every point completed, 3 if some failed, 2 on a bad spec."""
     try:
@@ -705,8 +814,9 @@ def cmd_sweep(args: argparse.Namespace) -> int:
             print(f"{sweep.write_manifest()}")
             print(sweep.points().drop(columns=["overrides", "dir"]).to_string(index=False))
             return 0
-        df = sweep.run(scheduler_address=args.scheduler, cluster=args.cluster,
-                       n_workers=args.workers, progress=not args.no_progress)
+        with _sigterm_as_interrupt():
+            df = sweep.run(scheduler_address=args.scheduler, cluster=args.cluster,
+                           n_workers=args.workers, progress=not args.no_progress)
     except SceneError as exc:
         print(f"pyorch: error: {exc}", file=sys.stderr)
         return 2

@@ -47,6 +47,7 @@ if [ "$(cat "$DEPS_STAMP" 2>/dev/null)" != "$deps_hash" ]; then
   "${PIP[@]}" install "numpy>=2.0" "scipy>=1.10" "pandas>=2.0" "matplotlib>=3.7" "f90nml>=1.4" \
     "tqdm>=4.60" "astropy>=5.0" "dask[distributed]>=2023.1" "dask-jobqueue>=0.8" \
     "tomli>=1.1; python_version < '3.11'" "pytest>=7" "hypothesis>=6" \
+    "nbformat>=5.7" "nbclient>=0.7" "ipykernel>=6" \
     "meson-python>=0.15" "meson>=1.4" ninja \
     "gsd>=3.2" "imageio>=2.28" "imageio-ffmpeg>=0.4.8" "ase>=3.22"
   echo "$deps_hash" > "$DEPS_STAMP"
