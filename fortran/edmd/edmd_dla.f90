@@ -56,7 +56,7 @@ module edmd_dla
     logical :: last_bounces = .false.
     logical :: stop_when_done = .true.
     ! &run
-    character(len=name_len) :: calendar = 'heap'
+    character(len=name_len) :: calendar = 'buckets'
     real(dp) :: tick = 0.02_dp                        !< [tau] (the seed's frame dt)
     real(dp) :: t_end = 100.0_dp                      !< [tau]
     real(dp) :: guard_tol = 1.0e-9_dp                 !< overlap allowed / (r_i + r_j)
@@ -210,7 +210,7 @@ contains
          int_str(sum(self%count(1:self%n_species)))//': packing fraction '//real_str(eta)// &
          ' of the box: allowed < 0.9 (close packing of disks: 0.9069)')
     call check_choice(path, 'run', 'calendar', self%calendar, [character(len=name_len) :: &
-         'heap', 'rescan'], st)
+         'buckets', 'heap', 'rescan'], st)
     call check_real(path, 'run', 't_end', self%t_end, 0.0_dp, 1.0e12_dp, .false., st)
     if (st%code /= 0) return
     call check_real(path, 'run', 'tick', self%tick, self%t_end/real(max_ticks, dp), self%t_end, &
@@ -374,7 +374,8 @@ contains
     call put_logical(text, 'stop_when_done', self%stop_when_done, 'end when no free disk is left')
     text = text//'/'//achar(10)
     text = text//'&run'//achar(10)
-    call put_str(text, 'calendar', self%calendar, 'heap: O(log N); rescan: the seed''s O(N^2)')
+    call put_str(text, 'calendar', self%calendar, 'buckets: O(1); heap: O(log N); rescan: '// &
+         'the seed''s O(N^2); same events')
     call put_real(text, 'tick', self%tick, 'tau (unit of work)')
     call put_real(text, 't_end', self%t_end, 'tau')
     call put_real(text, 'guard_tol', self%guard_tol, 'overlap allowed / (r_i + r_j)')
