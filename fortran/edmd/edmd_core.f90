@@ -590,6 +590,7 @@ contains
     pj = s%p(i)%pj
     pc = s%p(i)%pcount
     do iy = 0, nrows - 1
+      !GCC$ unroll 3
       do ix = 0, 2
         j = s%head(c0 + s%sx*iy + step*ix)
         do while (j /= 0)
