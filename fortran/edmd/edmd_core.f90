@@ -8,16 +8,16 @@
 !> prediction is a pure function of the stored states (the calendar rebuilt
 !> from them after a restore predicts bit-identical times). Memory layout: one
 !> 64-byte record per disk (disk_t: position, velocity, tl, radius, collision
-!> counter, cell link) and one per free disk's prediction (pred_t), so that a
-!> neighbour costs one cache line, not one per array (bench/RESULTS.md s. 17).
+!> counter, cell link) and one per disk's calendar entry and prediction
+!> (edmd_buckets' bq_entry_t), so that a neighbour, a pop or an update costs
+!> one cache line, not one per array (bench/RESULTS.md s. 17).
 !>
 !> Events: disk-disk collision (time from |dr + dv t| = r_i + r_j in the
 !> stable form dt = c / (-b + sqrt(b^2 - a c)), b = dr.dv < 0, c = |dr|^2 -
 !> sigma^2; c <= 0 while approaching = in contact now, dt = 0), disk-wall
 !> collision, and cell crossing (the box is cut into cells of side >= the
 !> largest diameter; a disk only looks at the 3 x 3 cells around its own;
-!> it keeps its best pair candidate and its wall time across crossings and
-!> scans only the 3 cells that became adjacent, unless that candidate's partner
+!> it keeps its best pair candidate across crossings and scans only the 3 cells that became adjacent, unless that candidate's partner
 !> changed).
 !>
 !> Calendar: one entry per free disk (its earliest event); an entry naming a
@@ -38,7 +38,7 @@ module edmd_core
   use kinds, only: dp, i8
   use errors, only: status_t, set_error, exit_numerical, exit_bad_input
   use edmd_heap, only: heap_t, heap_init, heap_set, heap_remove, heap_top
-  use edmd_buckets, only: bq_t, bq_init, bq_set, bq_remove, bq_top
+  use edmd_buckets, only: bq_t, bq_entry_t, bq_init, bq_set, bq_remove, bq_top
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   implicit none
   private
@@ -71,25 +71,13 @@ module edmd_core
     integer :: cell = -1                    !< cell (-1: not placed)
   end type disk_t
 
-  !> The prediction of one free disk (64 bytes).
-  type :: pred_t
-    real(dp) :: t = never                   !< calendar entry: time [tau]
-    real(dp) :: pt = never                  !< best pair candidate of the last scans [tau]
-    real(dp) :: tw = never                  !< wall time [tau] (crossings do not change it)
-    integer(i8) :: count = 0                !< entry's partner counter at the prediction
-    integer(i8) :: pcount = 0               !< candidate's partner counter at its scan
-    integer :: kind = 0, partner = 0        !< entry: ev_* and partner (wall, direction, disk)
-    integer :: pj = 0, wall = 0             !< candidate partner (0: none), wall of tw
-    integer(i8) :: pad = 0
-  end type pred_t
-
   type :: ed_t
     integer :: n = 0                        !< disks (free, stuck and the seed)
     real(dp) :: lx = 1, ly = 1              !< box [L]
     type(disk_t), allocatable :: d(:)
     real(dp), allocatable :: m(:)           !< mass [M]
     integer, allocatable :: state(:)        !< state_free | state_stuck | state_seed
-    type(pred_t), allocatable :: p(:)
+    type(bq_entry_t), allocatable :: p(:)   !< calendar entry and prediction of each disk
     ! cells: ncx x ncy of side wx x wy, in a ring of empty cells (no bounds checks in the
     ! 3 x 3 scans); cell (cx, cy) has the index (cx + 1) + sx (cy + 1), cx = 0..ncx - 1
     integer :: ncx = 1, ncy = 1, sx = 3
@@ -435,7 +423,7 @@ contains
     s%n_free = count(s%state == state_free)
     s%n_same = 0
     s%max_same = max(1000000_i8, 1000_i8*s%n)
-    s%p = pred_t()
+    s%p = bq_entry_t()                      ! no entries, no predictions
     select case (s%calendar)
     case (cal_heap); call heap_init(s%heap, s%n)
     case (cal_buckets); call bq_init(s%bq, s%n)
@@ -447,13 +435,15 @@ contains
   end subroutine ed_start
 
   ! ---------------------------------------------------------------- calendar
+  !> Entry of disk i at time t [tau] (s%p(i)%key = t).
   subroutine cal_set(s, i, t)
     type(ed_t), intent(inout) :: s
     integer, intent(in) :: i
     real(dp), intent(in) :: t
     if (s%calendar == cal_buckets) then
-      call bq_set(s%bq, i, t)
+      call bq_set(s%bq, s%p, i, t)
     else
+      s%p(i)%key = t
       call heap_set(s%heap, i, t)
     end if
   end subroutine cal_set
@@ -462,7 +452,7 @@ contains
     type(ed_t), intent(inout) :: s
     integer, intent(in) :: i
     if (s%calendar == cal_buckets) then
-      call bq_remove(s%bq, i)
+      call bq_remove(s%bq, s%p, i)
     else
       call heap_remove(s%heap, i)
     end if
@@ -471,7 +461,7 @@ contains
   integer function cal_top(s)
     type(ed_t), intent(inout) :: s
     if (s%calendar == cal_buckets) then
-      cal_top = bq_top(s%bq)
+      cal_top = bq_top(s%bq, s%p)
     else
       cal_top = heap_top(s%heap)
     end if
@@ -621,14 +611,13 @@ contains
     s%p(i)%pt = never
     s%p(i)%pj = 0
     call scan_cells(s, i, s%d(i)%cell - s%sx - 1, 1, 3)
-    call wall_time(s%d(i), s%lx, s%ly, s%p(i)%tw, s%p(i)%wall)
     call choose(s, i)
   end subroutine predict
 
   !> After disk i crossed into a new cell in direction d: its best pair candidate still holds
   !> if the partner has not changed since (the old 3 x 3 cells were scanned with the same
-  !> trajectories), so only the row or column of cells that became adjacent is scanned; its
-  !> wall time holds (same trajectory). Otherwise a full prediction. The same events result
+  !> trajectories), so only the row or column of cells that became adjacent is scanned.
+  !> Otherwise a full prediction. The same events result
   !> (tests: heap = rescan), at a third of the cell scans per crossing.
   subroutine predict_after_cross(s, i, d)
     type(ed_t), intent(inout) :: s
@@ -656,9 +645,8 @@ contains
     integer, intent(in) :: i
     real(dp) :: tb, tc
     integer :: kb, pb, w
-    tb = s%p(i)%tw
+    call wall_time(s%d(i), s%lx, s%ly, tb, pb)
     kb = ev_wall
-    pb = s%p(i)%wall
     call cross_time(s, i, tc, w)
     if (earlier(tc, ev_cell, w, tb, kb, pb)) then
       tb = tc; kb = ev_cell; pb = w
@@ -675,7 +663,6 @@ contains
     type(ed_t), intent(inout) :: s
     integer, intent(in) :: i, k, p
     real(dp), intent(in) :: t
-    s%p(i)%t = t
     s%p(i)%kind = k
     s%p(i)%partner = p
     s%p(i)%count = 0
@@ -727,7 +714,7 @@ contains
       if (s%calendar /= cal_rescan) then
         i = cal_top(s)
         if (i == 0) exit
-        te = s%p(i)%t
+        te = s%p(i)%key
         if (te >= t_target) exit
         k = s%p(i)%kind
         p = s%p(i)%partner
@@ -911,7 +898,7 @@ contains
                 s%p(k)%pt = tc
                 s%p(k)%pj = i
                 s%p(k)%pcount = s%d(i)%coll
-                if (earlier(tc, ev_pair, i, s%p(k)%t, s%p(k)%kind, s%p(k)%partner)) &
+                if (earlier(tc, ev_pair, i, s%p(k)%key, s%p(k)%kind, s%p(k)%partner)) &
                      call set_event(s, k, tc, ev_pair, i)
               end if
             end if
