@@ -45,10 +45,15 @@ def gas(n: int, calendar: str, events: float, eta: float = 0.25) -> dict:
             "output.frame_every": 0, "output.history_every": 0, "output.check_every": 0}
 
 
-def one(exe: str, scene: Path, out: Path) -> dict:
+# glibc's malloc on transparent huge pages (Linux, THP 'madvise'): fewer TLB misses at large N
+HUGEPAGES = {"GLIBC_TUNABLES": "glibc.malloc.hugetlb=1"}
+
+
+def one(exe: str, scene: Path, out: Path, env: dict | None = None) -> dict:
     """Event-loop CPU seconds and event counts of one run (run.json)."""
     p = subprocess.run([exe, str(scene), "--out", str(out), "--quiet"], capture_output=True,
-                       text=True, env={"OMP_NUM_THREADS": "1", "PATH": "/usr/bin:/bin"})
+                       text=True, env={"OMP_NUM_THREADS": "1", "PATH": "/usr/bin:/bin",
+                                       **(env or {})})
     if p.returncode != 0:
         raise RuntimeError(f"{exe}: exit {p.returncode}: {p.stderr.strip()}")
     meta = json.loads((out / "run.json").read_text())
@@ -58,12 +63,14 @@ def one(exe: str, scene: Path, out: Path) -> dict:
 
 def timed(configs: list[tuple[str, str, str]], n: int, events: float, repeat: int,
           tmp: Path) -> list[dict]:
-    """Fastest of ``repeat`` interleaved runs of each (label, exe, calendar) at N = n."""
+    """Fastest of ``repeat`` interleaved runs of each (label, exe, calendar) at N = n; a label
+    ending in '+hugepages' runs with HUGEPAGES in the environment."""
     best: dict[int, dict] = {}
     for r in range(repeat):
         for k, (label, exe, cal) in enumerate(configs):
             path = patched(GAS, gas(n, cal, events), tmp / f"{k}_{n}.nml")
-            got = one(exe, path, tmp / f"run{k}_{n}_{r}")
+            got = one(exe, path, tmp / f"run{k}_{n}_{r}",
+                      HUGEPAGES if label.endswith("+hugepages") else None)
             if k in best and any(got[c] != best[k][c] for c in COUNTS):
                 raise RuntimeError(f"{label} {cal} N={n}: counts differ between repeats")
             if k not in best or got["cpu_s"] < best[k]["cpu_s"]:
@@ -103,6 +110,8 @@ def main() -> None:
     ap.add_argument("--rescan", type=int, nargs="*", default=[100, 200, 400, 800])
     ap.add_argument("--instructions", action="store_true",
                     help="callgrind instructions per event (generic builds) instead of times")
+    ap.add_argument("--hugepages", action="store_true",
+                    help="also the new engine with glibc.malloc.hugetlb=1 (buckets)")
     args = ap.parse_args()
     print(common.machine_line())
     with tempfile.TemporaryDirectory() as tmpdir:
@@ -118,10 +127,13 @@ def main() -> None:
             common.save_table(pd.DataFrame(rows), "dla_speed_instructions.csv")
             return
         rows = []
+        configs = [("base", args.base, "heap"), ("new", args.new, "heap"),
+                   ("new", args.new, "buckets")]
+        if args.hugepages:
+            configs.append(("new+hugepages", args.new, "buckets"))
         for n in args.sizes:
-            rows += timed([("base", args.base, "heap"), ("new", args.new, "heap"),
-                           ("new", args.new, "buckets")], n, args.events, args.repeat, tmp)
-            print(pd.DataFrame(rows[-3:]).to_string(index=False), flush=True)
+            rows += timed(configs, n, args.events, args.repeat, tmp)
+            print(pd.DataFrame(rows[-len(configs):]).to_string(index=False), flush=True)
         for n in args.rescan:
             rows += timed([("base", args.base, "rescan"), ("new", args.new, "rescan")], n,
                           3000.0, args.repeat, tmp)
