@@ -11,8 +11,10 @@
 !> pop the same sequence (a function of the keys only, not of the history of the queue: a
 !> calendar rebuilt on restore pops in the same order). When the buckets are exhausted the
 !> next epoch starts at the earliest overflow time, with w from the spread of the entries
-!> (w = mean lead time / n: about one entry per bucket at the front; horizon nb w = 8 mean
-!> lead times), so the queue follows a changing event rate (an aggregating gas).
+!> (nb = 16 n, w = mean lead time / (2 n): about half an entry per bucket at the front; horizon
+!> nb w = 8 mean lead times), so the queue follows a changing event rate (an aggregating gas).
+!> The bucket count and width change the cost only (2-32 n buckets: within +-5 %, bench/RESULTS.md
+!> s. 17), never the order.
 module edmd_buckets
   use kinds, only: dp, i8
   implicit none
