@@ -1,6 +1,6 @@
 """Kind 'dla' (seed 004): event-driven hard disks aggregating on a seed. Physics tests:
 conservation with sticking off, no overlap in dense and grazing packings, trajectories against
-hand-computed ones, the heap calendar against the seed's O(N^2) rescan, the aggregate's tree,
+hand-computed ones, the three calendars against the seed's O(N^2) rescan, the aggregate's tree,
 the fractal dimension, the last-bounce option, pause/resume and refused input."""
 from __future__ import annotations
 

@@ -17,8 +17,8 @@
 !> sigma^2; c <= 0 while approaching = in contact now, dt = 0), disk-wall
 !> collision, and cell crossing (the box is cut into cells of side >= the
 !> largest diameter; a disk only looks at the 3 x 3 cells around its own;
-!> it keeps its best pair candidate across crossings and scans only the 3 cells that became adjacent, unless that candidate's partner
-!> changed).
+!> it keeps its best pair candidate across crossings and scans only the 3
+!> cells that became adjacent, unless that candidate's partner changed).
 !>
 !> Calendar: one entry per free disk (its earliest event); an entry naming a
 !> partner whose collision counter changed since the prediction is stale and is
