@@ -14,7 +14,7 @@
 !> (nb = 16 n, w = mean lead time / (2 n): about half an entry per bucket at the front; horizon
 !> nb w = 8 mean lead times), so the queue follows a changing event rate (an aggregating gas).
 !> The bucket count and width change the cost only (2-32 n buckets: within +-5 %, bench/RESULTS.md
-!> s. 17), never the order.
+!> s. 18), never the order.
 module edmd_buckets
   use kinds, only: dp, i8
   implicit none

@@ -10,7 +10,7 @@
 !> 64-byte record per disk (disk_t: position, velocity, tl, radius, collision
 !> counter, cell link) and one per disk's calendar entry and prediction
 !> (edmd_buckets' bq_entry_t), so that a neighbour, a pop or an update costs
-!> one cache line, not one per array (bench/RESULTS.md s. 17).
+!> one cache line, not one per array (bench/RESULTS.md s. 18).
 !>
 !> Events: disk-disk collision (time from |dr + dv t| = r_i + r_j in the
 !> stable form dt = c / (-b + sqrt(b^2 - a c)), b = dr.dv < 0, c = |dr|^2 -
