@@ -2,11 +2,15 @@
 !> [0, lx] x [0, ly], with an aggregate of static disks (infinite mass) that
 !> free disks stick to (or bounce off).
 !>
-!> State: each disk i stores its position x(:,i) at its own time tl(i) and its
-!> velocity v(:,i); it moves ballistically, x(t) = x(:,i) + v(:,i) (t - tl(i)),
-!> until its next event. The stored states are only touched by events, so
-!> every prediction is a pure function of the stored states (the calendar
-!> rebuilt from them after a restore predicts bit-identical times).
+!> State: each disk i stores its position (x, y) at its own time tl and its
+!> velocity (vx, vy); it moves ballistically, x(t) = x + vx (t - tl), until its
+!> next event. The stored states are only touched by events, so every
+!> prediction is a pure function of the stored states (the calendar rebuilt
+!> from them after a restore predicts bit-identical times). Memory layout: one
+!> 64-byte record per disk (disk_t: position, velocity, tl, radius, collision
+!> counter, cell link) and one per disk's calendar entry and prediction
+!> (edmd_buckets' bq_entry_t), so that a neighbour, a pop or an update costs
+!> one cache line, not one per array (bench/RESULTS.md s. 18).
 !>
 !> Events: disk-disk collision (time from |dr + dv t| = r_i + r_j in the
 !> stable form dt = c / (-b + sqrt(b^2 - a c)), b = dr.dv < 0, c = |dr|^2 -
@@ -16,12 +20,14 @@
 !> it keeps its best pair candidate across crossings and scans only the 3
 !> cells that became adjacent, unless that candidate's partner changed).
 !>
-!> Calendar ('heap'): one entry per free disk (its earliest event) in an
-!> indexed binary heap (edmd_heap); an entry naming a partner whose collision
-!> counter changed since the prediction is stale and is re-predicted when it
-!> reaches the top. O(log N) per event. Calendar 'rescan': the seed's
-!> algorithm, every pair and wall re-examined at every event (O(N^2)); it
-!> yields the same physical events in the same order (tests, benchmarks).
+!> Calendar: one entry per free disk (its earliest event); an entry naming a
+!> partner whose collision counter changed since the prediction is stale and is
+!> re-predicted when it reaches the top. 'buckets': a bucketed calendar queue
+!> (edmd_buckets), O(1) per event; 'heap': an indexed binary heap (edmd_heap),
+!> O(log N); both order ties by the disk id and pop the same sequence.
+!> 'rescan': the seed's algorithm, every pair and wall re-examined at every
+!> event (O(N^2)); it yields the same physical events in the same order
+!> (tests, benchmarks).
 !>
 !> Sticking is the rule of a collision with a static disk: the free disk stops
 !> at contact and becomes static, recording its time, event and the member it
@@ -32,18 +38,21 @@ module edmd_core
   use kinds, only: dp, i8
   use errors, only: status_t, set_error, exit_numerical, exit_bad_input
   use edmd_heap, only: heap_t, heap_init, heap_set, heap_remove, heap_top
+  use edmd_buckets, only: bq_t, bq_entry_t, bq_init, bq_set, bq_remove, bq_top
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   implicit none
   private
 
-  public :: ed_t, ed_setup, ed_place_random, ed_place_lattice, ed_velocities, ed_start, &
+  public :: ed_t, disk_t, ed_setup, ed_place_random, ed_place_lattice, ed_velocities, ed_start, &
        ed_run_until, ed_position, ed_kinetic, ed_momentum, ed_check_overlaps, ed_rebuild_cells, ed_put, ed_sort_by_cell, &
+       ed_cells, ed_load_cells, &
        rng_t, rng_uniform, rng_normal, ev_pair, ev_wall, ev_cell, ev_stick, ev_bounce
   public :: state_free, state_stuck, state_seed
 
   integer, parameter :: ev_none = 0, ev_pair = 1, ev_wall = 2, ev_cell = 3
   integer, parameter :: ev_stick = 4, ev_bounce = 5   !< logged types of pair events
   integer, parameter :: state_free = 0, state_stuck = 1, state_seed = 2
+  integer, parameter :: cal_rescan = 0, cal_heap = 1, cal_buckets = 2
   real(dp), parameter :: never = huge(1.0_dp)
 
   !> splitmix64: a small, portable, seeded generator (initial state only).
@@ -51,29 +60,33 @@ module edmd_core
     integer(i8) :: s = 0
   end type rng_t
 
+  !> One disk: everything a neighbour's pair test reads, in 64 bytes.
+  type :: disk_t
+    real(dp) :: x = 0, y = 0                !< position at tl [L]
+    real(dp) :: vx = 0, vy = 0              !< velocity [L/tau]
+    real(dp) :: tl = 0                      !< time of the stored position [tau]
+    real(dp) :: r = 0                       !< radius [L]
+    integer(i8) :: coll = 0                 !< counter of velocity changes
+    integer :: next = 0                     !< next disk of the same cell (0: none)
+    integer :: cell = -1                    !< cell (-1: not placed)
+  end type disk_t
+
   type :: ed_t
     integer :: n = 0                        !< disks (free, stuck and the seed)
     real(dp) :: lx = 1, ly = 1              !< box [L]
-    real(dp), allocatable :: x(:,:), v(:,:) !< position [L] at tl, velocity [L/tau]
-    real(dp), allocatable :: tl(:)          !< time of the stored position [tau]
-    real(dp), allocatable :: r(:), m(:)     !< radius [L], mass [M]
+    type(disk_t), allocatable :: d(:)
+    real(dp), allocatable :: m(:)           !< mass [M]
     integer, allocatable :: state(:)        !< state_free | state_stuck | state_seed
-    integer(i8), allocatable :: coll(:)     !< per-disk counter of velocity changes
-    ! the prediction of each free disk
-    real(dp), allocatable :: ev_t(:)
-    integer, allocatable :: ev_kind(:), ev_partner(:)
-    integer(i8), allocatable :: ev_count(:)
-    ! the best pair candidate of each free disk's last scan (kept across its cell crossings)
-    real(dp), allocatable :: pb_t(:)
-    integer, allocatable :: pb_j(:)
-    integer(i8), allocatable :: pb_count(:)
-    ! cells
-    integer :: ncx = 1, ncy = 1
+    type(bq_entry_t), allocatable :: p(:)   !< calendar entry and prediction of each disk
+    ! cells: ncx x ncy of side wx x wy, in a ring of empty cells (no bounds checks in the
+    ! 3 x 3 scans); cell (cx, cy) has the index (cx + 1) + sx (cy + 1), cx = 0..ncx - 1
+    integer :: ncx = 1, ncy = 1, sx = 3
     real(dp) :: wx = 1, wy = 1
-    integer, allocatable :: cell(:), head(:), next(:), prev(:)
+    integer, allocatable :: head(:)
     ! calendar
-    logical :: use_heap = .true.
+    integer :: calendar = cal_buckets
     type(heap_t) :: heap
+    type(bq_t) :: bq
     ! rules
     logical :: sticking = .true.
     logical :: last_bounces = .false.
@@ -133,29 +146,30 @@ contains
 
   ! ---------------------------------------------------------------- set-up
   !> Allocate n disks with radii r [L] and masses m [M] (m = huge: static) in
-  !> the box; cells of side >= the largest diameter.
-  subroutine ed_setup(s, lx, ly, r, m, use_heap, sticking, last_bounces, logging)
+  !> the box; cells of side >= the largest diameter. calendar: 'buckets', 'heap'
+  !> or 'rescan'.
+  subroutine ed_setup(s, lx, ly, r, m, calendar, sticking, last_bounces, logging)
     type(ed_t), intent(out) :: s
     real(dp), intent(in) :: lx, ly, r(:), m(:)
-    logical, intent(in) :: use_heap, sticking, last_bounces, logging
+    character(len=*), intent(in) :: calendar
+    logical, intent(in) :: sticking, last_bounces, logging
     integer :: n
     real(dp) :: dmax
     n = size(r)
     s%n = n
     s%lx = lx
     s%ly = ly
-    s%r = r
+    allocate(s%d(n), s%p(n), s%state(n), s%parent(n), s%t_stick(n), s%ev_stuck(n), &
+         s%new_stuck(n))
+    s%d(:)%r = r
     s%m = m
-    allocate(s%x(2, n), s%v(2, n), s%tl(n), s%state(n), s%coll(n), s%ev_t(n), s%ev_kind(n), &
-         s%ev_partner(n), s%ev_count(n), s%cell(n), s%next(n), s%prev(n), s%parent(n), &
-         s%t_stick(n), s%ev_stuck(n), s%new_stuck(n), s%pb_t(n), s%pb_j(n), s%pb_count(n))
-    s%pb_t = never; s%pb_j = 0; s%pb_count = 0
-    s%x = 0; s%v = 0; s%tl = 0
     s%state = state_free
-    s%coll = 0
-    s%ev_t = never; s%ev_kind = ev_none; s%ev_partner = 0; s%ev_count = 0
     s%parent = 0; s%t_stick = 0; s%ev_stuck = 0
-    s%use_heap = use_heap
+    select case (calendar)
+    case ('heap'); s%calendar = cal_heap
+    case ('rescan'); s%calendar = cal_rescan
+    case default; s%calendar = cal_buckets
+    end select
     s%sticking = sticking
     s%last_bounces = last_bounces
     s%logging = logging
@@ -166,9 +180,9 @@ contains
     s%ncy = max(1, int(ly/dmax))
     s%wx = lx/s%ncx
     s%wy = ly/s%ncy
-    allocate(s%head(0:s%ncx*s%ncy - 1))
+    s%sx = s%ncx + 2
+    allocate(s%head(0:s%sx*(s%ncy + 2) - 1))
     s%head = 0
-    s%cell = -1
     if (logging) then
       allocate(s%log_t(1024), s%log_kind(1024), s%log_i(1024), s%log_j(1024), s%log_no(1024))
     end if
@@ -180,39 +194,81 @@ contains
     integer :: cx, cy
     cx = min(s%ncx - 1, max(0, int(x/s%wx)))
     cy = min(s%ncy - 1, max(0, int(y/s%wy)))
-    cell_of = cx + s%ncx*cy
+    cell_of = (cx + 1) + s%sx*(cy + 1)
   end function cell_of
 
+  !> Column and row (from 0) of cell c.
+  pure subroutine cell_xy(s, c, cx, cy)
+    type(ed_t), intent(in) :: s
+    integer, intent(in) :: c
+    integer, intent(out) :: cx, cy
+    cy = c/s%sx
+    cx = c - s%sx*cy - 1
+    cy = cy - 1
+  end subroutine cell_xy
+
+  !> Cells of the disks in row-major numbering cx + ncx cy (-1: not placed): the checkpoint's.
+  pure function ed_cells(s) result(cells)
+    type(ed_t), intent(in) :: s
+    integer :: cells(s%n)
+    integer :: i, cx, cy
+    do i = 1, s%n
+      cells(i) = -1
+      if (s%d(i)%cell < 0) cycle
+      call cell_xy(s, s%d(i)%cell, cx, cy)
+      cells(i) = cx + s%ncx*cy
+    end do
+  end function ed_cells
+
+  !> Cells of the disks from row-major numbers (ed_cells), and the cell lists. .false. if a
+  !> number is out of range (nothing changed).
+  logical function ed_load_cells(s, cells) result(ok)
+    type(ed_t), intent(inout) :: s
+    integer, intent(in) :: cells(:)
+    integer :: i
+    ok = size(cells) == s%n
+    if (ok) ok = all(cells >= 0 .and. cells < s%ncx*s%ncy)
+    if (.not. ok) return
+    do i = 1, s%n
+      s%d(i)%cell = (mod(cells(i), s%ncx) + 1) + s%sx*(cells(i)/s%ncx + 1)
+    end do
+    call ed_rebuild_cells(s)
+  end function ed_load_cells
+
+  !> Disk i to the front of cell c's list.
   subroutine cell_insert(s, i, c)
     type(ed_t), intent(inout) :: s
     integer, intent(in) :: i, c
-    s%cell(i) = c
-    s%prev(i) = 0
-    s%next(i) = s%head(c)
-    if (s%head(c) /= 0) s%prev(s%head(c)) = i
+    s%d(i)%cell = c
+    s%d(i)%next = s%head(c)
     s%head(c) = i
   end subroutine cell_insert
 
+  !> Disk i out of its cell's list (singly linked: the lists hold a few disks).
   subroutine cell_delete(s, i)
     type(ed_t), intent(inout) :: s
     integer, intent(in) :: i
-    if (s%prev(i) /= 0) then
-      s%next(s%prev(i)) = s%next(i)
+    integer :: j
+    j = s%head(s%d(i)%cell)
+    if (j == i) then
+      s%head(s%d(i)%cell) = s%d(i)%next
     else
-      s%head(s%cell(i)) = s%next(i)
+      do while (s%d(j)%next /= i)
+        j = s%d(j)%next
+      end do
+      s%d(j)%next = s%d(i)%next
     end if
-    if (s%next(i) /= 0) s%prev(s%next(i)) = s%prev(i)
-    s%cell(i) = -1
+    s%d(i)%cell = -1
   end subroutine cell_delete
 
-  !> Cell lists from s%cell (restore), or from positions where s%cell < 0.
+  !> Cell lists from the disks' cells (restore), or from positions where cell < 0.
   subroutine ed_rebuild_cells(s)
     type(ed_t), intent(inout) :: s
     integer :: i, c
     s%head = 0
     do i = 1, s%n
-      c = s%cell(i)
-      if (c < 0) c = cell_of(s, s%x(1, i), s%x(2, i))
+      c = s%d(i)%cell
+      if (c < 0) c = cell_of(s, s%d(i)%x, s%d(i)%y)
       call cell_insert(s, i, c)
     end do
   end subroutine ed_rebuild_cells
@@ -225,32 +281,32 @@ contains
     integer, intent(in) :: first
     integer :: i, k, nc
     integer, allocatable :: cnt(:), perm(:)
-    nc = s%ncx*s%ncy
+    nc = size(s%head)
     allocate(cnt(0:nc), perm(first:s%n))
     cnt = 0
     do i = first, s%n
-      cnt(s%cell(i) + 1) = cnt(s%cell(i) + 1) + 1
+      cnt(s%d(i)%cell + 1) = cnt(s%d(i)%cell + 1) + 1
     end do
     do k = 1, nc
       cnt(k) = cnt(k) + cnt(k - 1)
     end do
     do i = first, s%n
-      cnt(s%cell(i)) = cnt(s%cell(i)) + 1
-      perm(first - 1 + cnt(s%cell(i))) = i
+      cnt(s%d(i)%cell) = cnt(s%d(i)%cell) + 1
+      perm(first - 1 + cnt(s%d(i)%cell)) = i
     end do
-    s%x(:, first:) = s%x(:, perm)
-    s%r(first:) = s%r(perm)
+    s%d(first:) = s%d(perm)
     s%m(first:) = s%m(perm)
-    s%cell(first:) = s%cell(perm)
+    s%state(first:) = s%state(perm)
     call ed_rebuild_cells(s)
   end subroutine ed_sort_by_cell
 
-  !> Put disk i at (x, y) [L] into the cells (placement of static disks).
+  !> Put disk i at (x, y) [L] into the cells (placement).
   subroutine ed_put(s, i, x, y)
     type(ed_t), intent(inout) :: s
     integer, intent(in) :: i
     real(dp), intent(in) :: x, y
-    s%x(:, i) = [x, y]
+    s%d(i)%x = x
+    s%d(i)%y = y
     call cell_insert(s, i, cell_of(s, x, y))
   end subroutine ed_put
 
@@ -258,23 +314,21 @@ contains
   logical function overlaps_placed(s, x, y, ri, margin)
     type(ed_t), intent(in) :: s
     real(dp), intent(in) :: x, y, ri, margin
-    integer :: c, cx, cy, ix, iy, j
+    integer :: c, ix, iy, j
     real(dp) :: d2, sg
     overlaps_placed = .false.
     c = cell_of(s, x, y)
-    cx = mod(c, s%ncx)
-    cy = c/s%ncx
-    do iy = max(0, cy - 1), min(s%ncy - 1, cy + 1)
-      do ix = max(0, cx - 1), min(s%ncx - 1, cx + 1)
-        j = s%head(ix + s%ncx*iy)
+    do iy = -1, 1
+      do ix = -1, 1
+        j = s%head(c + ix + s%sx*iy)
         do while (j /= 0)
-          sg = (ri + s%r(j))*(1.0_dp + margin)
-          d2 = (x - s%x(1, j))**2 + (y - s%x(2, j))**2
+          sg = (ri + s%d(j)%r)*(1.0_dp + margin)
+          d2 = (x - s%d(j)%x)**2 + (y - s%d(j)%y)**2
           if (d2 < sg*sg) then
             overlaps_placed = .true.
             return
           end if
-          j = s%next(j)
+          j = s%d(j)%next
         end do
       end do
     end do
@@ -288,14 +342,15 @@ contains
     integer, intent(in) :: first
     type(status_t), intent(inout) :: st
     integer :: i, tries
-    real(dp) :: x, y
+    real(dp) :: x, y, ri
     character(len=200) :: buf
     integer, parameter :: max_tries = 100000
     do i = first, s%n
+      ri = s%d(i)%r
       do tries = 1, max_tries
-        x = s%r(i) + rng_uniform(g)*(s%lx - 2.0_dp*s%r(i))
-        y = s%r(i) + rng_uniform(g)*(s%ly - 2.0_dp*s%r(i))
-        if (.not. overlaps_placed(s, x, y, s%r(i), 0.0_dp)) exit
+        x = ri + rng_uniform(g)*(s%lx - 2.0_dp*ri)
+        y = ri + rng_uniform(g)*(s%ly - 2.0_dp*ri)
+        if (.not. overlaps_placed(s, x, y, ri, 0.0_dp)) exit
       end do
       if (tries > max_tries) then
         write(buf, '(a,i0,a,i0,a)') 'random placement: no room for disk ', i, ' after ', &
@@ -304,8 +359,7 @@ contains
         call set_error(st, exit_bad_input, trim(buf))
         return
       end if
-      s%x(:, i) = [x, y]
-      call cell_insert(s, i, cell_of(s, x, y))
+      call ed_put(s, i, x, y)
     end do
   end subroutine ed_place_random
 
@@ -318,7 +372,7 @@ contains
     type(status_t), intent(inout) :: st
     integer :: i, kx, ky, nx, ny
     real(dp) :: rm, x, y
-    rm = maxval(s%r(first:))
+    rm = maxval(s%d(first:)%r)
     ! Strictly fewer sites than fit: a row spanning wall to wall in exact contact is rigid
     ! (a zero-time collision cascade that never ends), so every row keeps some slack.
     nx = ceiling(s%lx/(2.0_dp*rm)) - 1
@@ -331,8 +385,7 @@ contains
         y = rm + 2.0_dp*rm*ky
         if (x + rm > s%lx .or. y + rm > s%ly) cycle
         if (overlaps_placed(s, x, y, rm, -1.0e-12_dp)) cycle
-        s%x(:, i) = [x, y]
-        call cell_insert(s, i, cell_of(s, x, y))
+        call ed_put(s, i, x, y)
         i = i + 1
       end do
     end do outer
@@ -352,12 +405,13 @@ contains
     do i = 1, s%n
       if (s%state(i) /= state_free) cycle
       if (rule == 'maxwell') then
-        s%v(1, i) = sqrt(kt/s%m(i))*rng_normal(g)
-        s%v(2, i) = sqrt(kt/s%m(i))*rng_normal(g)
+        s%d(i)%vx = sqrt(kt/s%m(i))*rng_normal(g)
+        s%d(i)%vy = sqrt(kt/s%m(i))*rng_normal(g)
       else
         a = 6.283185307179586476925286766559_dp*rng_uniform(g)
         sp = sqrt(2.0_dp*kt/s%m(i))
-        s%v(:, i) = sp*[cos(a), sin(a)]
+        s%d(i)%vx = sp*cos(a)
+        s%d(i)%vy = sp*sin(a)
       end if
     end do
   end subroutine ed_velocities
@@ -369,38 +423,74 @@ contains
     s%n_free = count(s%state == state_free)
     s%n_same = 0
     s%max_same = max(1000000_i8, 1000_i8*s%n)
-    if (.not. s%use_heap) return
-    call heap_init(s%heap, s%n)
+    s%p = bq_entry_t()                      ! no entries, no predictions
+    select case (s%calendar)
+    case (cal_heap); call heap_init(s%heap, s%n)
+    case (cal_buckets); call bq_init(s%bq, s%n)
+    case default; return
+    end select
     do i = 1, s%n
       if (s%state(i) == state_free) call predict(s, i)
     end do
   end subroutine ed_start
 
+  ! ---------------------------------------------------------------- calendar
+  !> Entry of disk i at time t [tau] (s%p(i)%key = t).
+  subroutine cal_set(s, i, t)
+    type(ed_t), intent(inout) :: s
+    integer, intent(in) :: i
+    real(dp), intent(in) :: t
+    if (s%calendar == cal_buckets) then
+      call bq_set(s%bq, s%p, i, t)
+    else
+      s%p(i)%key = t
+      call heap_set(s%heap, i, t)
+    end if
+  end subroutine cal_set
+
+  subroutine cal_remove(s, i)
+    type(ed_t), intent(inout) :: s
+    integer, intent(in) :: i
+    if (s%calendar == cal_buckets) then
+      call bq_remove(s%bq, s%p, i)
+    else
+      call heap_remove(s%heap, i)
+    end if
+  end subroutine cal_remove
+
+  integer function cal_top(s)
+    type(ed_t), intent(inout) :: s
+    if (s%calendar == cal_buckets) then
+      cal_top = bq_top(s%bq, s%p)
+    else
+      cal_top = heap_top(s%heap)
+    end if
+  end function cal_top
+
   ! ---------------------------------------------------------------- prediction
-  !> Time of the collision of i and j [tau] (never if they do not collide);
-  !> a pure function of the two stored states, symmetric in i and j.
-  pure real(dp) function pair_time(s, i, j) result(tc)
-    type(ed_t), intent(in) :: s
-    integer, intent(in) :: i, j
-    real(dp) :: tr, dx, dy, dvx, dvy, a, b, c, disc, sg
+  !> Time of the collision of disks a and b [tau] (never if they do not collide);
+  !> a pure function of the two stored states, symmetric in a and b.
+  pure real(dp) function pair_time(a, b) result(tc)
+    type(disk_t), intent(in) :: a, b
+    real(dp) :: tr, dx, dy, dvx, dvy, qa, qb, qc, disc, sg
     tc = never
-    tr = max(s%tl(i), s%tl(j))
-    dvx = s%v(1, i) - s%v(1, j)
-    dvy = s%v(2, i) - s%v(2, j)
-    dx = (s%x(1, i) + s%v(1, i)*(tr - s%tl(i))) - (s%x(1, j) + s%v(1, j)*(tr - s%tl(j)))
-    dy = (s%x(2, i) + s%v(2, i)*(tr - s%tl(i))) - (s%x(2, j) + s%v(2, j)*(tr - s%tl(j)))
-    b = dx*dvx + dy*dvy
-    if (b >= 0.0_dp) return                    ! separating (or at rest relative)
-    sg = s%r(i) + s%r(j)
-    c = dx*dx + dy*dy - sg*sg
-    if (c <= 0.0_dp) then                      ! in contact (round-off) and approaching: now
+    tr = max(a%tl, b%tl)
+    dvx = a%vx - b%vx
+    dvy = a%vy - b%vy
+    dx = (a%x + a%vx*(tr - a%tl)) - (b%x + b%vx*(tr - b%tl))
+    dy = (a%y + a%vy*(tr - a%tl)) - (b%y + b%vy*(tr - b%tl))
+    qb = dx*dvx + dy*dvy
+    if (qb >= 0.0_dp) return                   ! separating (or at rest relative)
+    sg = a%r + b%r
+    qc = dx*dx + dy*dy - sg*sg
+    if (qc <= 0.0_dp) then                     ! in contact (round-off) and approaching: now
       tc = tr
       return
     end if
-    a = dvx*dvx + dvy*dvy
-    disc = b*b - a*c
+    qa = dvx*dvx + dvy*dvy
+    disc = qb*qb - qa*qc
     if (disc <= 0.0_dp) return                 ! miss
-    tc = tr + c/(-b + sqrt(disc))              ! stable root: no cancellation for small c
+    tc = tr + qc/(-qb + sqrt(disc))            ! stable root: no cancellation for small c
   end function pair_time
 
   !> Candidate (t, kind, partner) before (t0, k0, p0)? Lexicographic: order-free.
@@ -411,35 +501,41 @@ contains
     if (t == t0) earlier = k < k0 .or. (k == k0 .and. p < p0)
   end function earlier
 
-  !> Wall time and wall (1 x-, 2 x+, 3 y-, 4 y+) of free disk i.
-  pure subroutine wall_time(s, i, tw, w)
-    type(ed_t), intent(in) :: s
-    integer, intent(in) :: i
+  !> Time to reach the coordinate b from x at speed v [tau] (v /= 0; never negative).
+  pure real(dp) function reach(b, x, v)
+    real(dp), intent(in) :: b, x, v
+    reach = max(0.0_dp, (b - x)/v)
+  end function reach
+
+  !> Wall time and wall (1 x-, 2 x+, 3 y-, 4 y+) of free disk a in the box lx x ly.
+  pure subroutine wall_time(a, lx, ly, tw, w)
+    type(disk_t), intent(in) :: a
+    real(dp), intent(in) :: lx, ly
     real(dp), intent(out) :: tw
     integer, intent(out) :: w
     real(dp) :: t1
     tw = never
     w = 0
-    if (s%v(1, i) > 0.0_dp) then
-      tw = s%tl(i) + max(0.0_dp, (s%lx - s%r(i) - s%x(1, i))/s%v(1, i)); w = 2
-    else if (s%v(1, i) < 0.0_dp) then
-      tw = s%tl(i) + max(0.0_dp, (s%r(i) - s%x(1, i))/s%v(1, i)); w = 1
+    if (a%vx > 0.0_dp) then
+      tw = a%tl + reach(lx - a%r, a%x, a%vx); w = 2
+    else if (a%vx < 0.0_dp) then
+      tw = a%tl + reach(a%r, a%x, a%vx); w = 1
     end if
     t1 = never
-    if (s%v(2, i) > 0.0_dp) then
-      t1 = s%tl(i) + max(0.0_dp, (s%ly - s%r(i) - s%x(2, i))/s%v(2, i))
+    if (a%vy > 0.0_dp) then
+      t1 = a%tl + reach(ly - a%r, a%y, a%vy)
       if (t1 < tw) then
         tw = t1; w = 4
       end if
-    else if (s%v(2, i) < 0.0_dp) then
-      t1 = s%tl(i) + max(0.0_dp, (s%r(i) - s%x(2, i))/s%v(2, i))
+    else if (a%vy < 0.0_dp) then
+      t1 = a%tl + reach(a%r, a%y, a%vy)
       if (t1 < tw) then
         tw = t1; w = 3
       end if
     end if
   end subroutine wall_time
 
-  !> Earliest cell-crossing time and direction (1 x-, 2 x+, 3 y-, 4 y+).
+  !> Earliest cell-crossing time and direction (1 x-, 2 x+, 3 y-, 4 y+) of free disk i.
   pure subroutine cross_time(s, i, tx, d)
     type(ed_t), intent(in) :: s
     integer, intent(in) :: i
@@ -447,53 +543,64 @@ contains
     integer, intent(out) :: d
     integer :: cx, cy
     real(dp) :: t1
-    cx = mod(s%cell(i), s%ncx)
-    cy = s%cell(i)/s%ncx
-    tx = never
-    d = 0
-    if (s%v(1, i) > 0.0_dp .and. cx < s%ncx - 1) then
-      tx = s%tl(i) + max(0.0_dp, ((cx + 1)*s%wx - s%x(1, i))/s%v(1, i)); d = 2
-    else if (s%v(1, i) < 0.0_dp .and. cx > 0) then
-      tx = s%tl(i) + max(0.0_dp, (cx*s%wx - s%x(1, i))/s%v(1, i)); d = 1
-    end if
-    if (s%v(2, i) > 0.0_dp .and. cy < s%ncy - 1) then
-      t1 = s%tl(i) + max(0.0_dp, ((cy + 1)*s%wy - s%x(2, i))/s%v(2, i))
-      if (t1 < tx) then
-        tx = t1; d = 4
+    associate (a => s%d(i))
+      call cell_xy(s, a%cell, cx, cy)
+      tx = never
+      d = 0
+      if (a%vx > 0.0_dp .and. cx < s%ncx - 1) then
+        tx = a%tl + reach((cx + 1)*s%wx, a%x, a%vx); d = 2
+      else if (a%vx < 0.0_dp .and. cx > 0) then
+        tx = a%tl + reach(cx*s%wx, a%x, a%vx); d = 1
       end if
-    else if (s%v(2, i) < 0.0_dp .and. cy > 0) then
-      t1 = s%tl(i) + max(0.0_dp, (cy*s%wy - s%x(2, i))/s%v(2, i))
-      if (t1 < tx) then
-        tx = t1; d = 3
+      if (a%vy > 0.0_dp .and. cy < s%ncy - 1) then
+        t1 = a%tl + reach((cy + 1)*s%wy, a%y, a%vy)
+        if (t1 < tx) then
+          tx = t1; d = 4
+        end if
+      else if (a%vy < 0.0_dp .and. cy > 0) then
+        t1 = a%tl + reach(cy*s%wy, a%y, a%vy)
+        if (t1 < tx) then
+          tx = t1; d = 3
+        end if
       end if
-    end if
+    end associate
   end subroutine cross_time
 
-  !> Best pair candidate of free disk i over the cells cx0..cx1 x cy0..cy1, into pb_*
-  !> (only if earlier than the one held).
-  subroutine scan_cells(s, i, cx0, cx1, cy0, cy1)
+  !> Best pair candidate of free disk i over nrows rows of 3 cells c0 + r sx + k step
+  !> (k = 0..2), into its prediction record (only if earlier than the one held).
+  subroutine scan_cells(s, i, c0, step, nrows)
     type(ed_t), intent(inout) :: s
-    integer, intent(in) :: i, cx0, cx1, cy0, cy1
-    integer :: ix, iy, j
-    real(dp) :: tc
-    do iy = max(0, cy0), min(s%ncy - 1, cy1)
-      do ix = max(0, cx0), min(s%ncx - 1, cx1)
-        j = s%head(ix + s%ncx*iy)
+    integer, intent(in) :: i, c0, step, nrows
+    integer :: ix, iy, j, pj
+    real(dp) :: tc, pt
+    integer(i8) :: pc
+    type(disk_t) :: a
+    a = s%d(i)
+    pt = s%p(i)%pt
+    pj = s%p(i)%pj
+    pc = s%p(i)%pcount
+    do iy = 0, nrows - 1
+      !GCC$ unroll 3
+      do ix = 0, 2
+        j = s%head(c0 + s%sx*iy + step*ix)
         do while (j /= 0)
           if (j /= i) then
-            tc = pair_time(s, i, j)
+            tc = pair_time(a, s%d(j))
             if (tc < never) then
-              if (earlier(tc, ev_pair, j, s%pb_t(i), ev_pair, s%pb_j(i))) then
-                s%pb_t(i) = tc
-                s%pb_j(i) = j
-                s%pb_count(i) = s%coll(j)
+              if (earlier(tc, ev_pair, j, pt, ev_pair, pj)) then
+                pt = tc
+                pj = j
+                pc = s%d(j)%coll
               end if
             end if
           end if
-          j = s%next(j)
+          j = s%d(j)%next
         end do
       end do
     end do
+    s%p(i)%pt = pt
+    s%p(i)%pj = pj
+    s%p(i)%pcount = pc
   end subroutine scan_cells
 
   !> Earliest event of free disk i over walls, its cell edges and the disks
@@ -501,37 +608,33 @@ contains
   subroutine predict(s, i)
     type(ed_t), intent(inout) :: s
     integer, intent(in) :: i
-    integer :: cx, cy
-    s%pb_t(i) = never
-    s%pb_j(i) = 0
-    cx = mod(s%cell(i), s%ncx)
-    cy = s%cell(i)/s%ncx
-    call scan_cells(s, i, cx - 1, cx + 1, cy - 1, cy + 1)
+    s%p(i)%pt = never
+    s%p(i)%pj = 0
+    call scan_cells(s, i, s%d(i)%cell - s%sx - 1, 1, 3)
     call choose(s, i)
   end subroutine predict
 
   !> After disk i crossed into a new cell in direction d: its best pair candidate still holds
   !> if the partner has not changed since (the old 3 x 3 cells were scanned with the same
   !> trajectories), so only the row or column of cells that became adjacent is scanned.
-  !> Otherwise a full prediction. The same events result (tests: heap = rescan), at a third of
-  !> the cell scans per crossing.
+  !> Otherwise a full prediction. The same events result
+  !> (tests: heap = rescan), at a third of the cell scans per crossing.
   subroutine predict_after_cross(s, i, d)
     type(ed_t), intent(inout) :: s
     integer, intent(in) :: i, d
-    integer :: cx, cy
-    if (s%pb_j(i) /= 0) then
-      if (s%coll(s%pb_j(i)) /= s%pb_count(i)) then
+    integer :: c
+    if (s%p(i)%pj /= 0) then
+      if (s%d(s%p(i)%pj)%coll /= s%p(i)%pcount) then
         call predict(s, i)
         return
       end if
     end if
-    cx = mod(s%cell(i), s%ncx)
-    cy = s%cell(i)/s%ncx
+    c = s%d(i)%cell
     select case (d)
-    case (1); call scan_cells(s, i, cx - 1, cx - 1, cy - 1, cy + 1)
-    case (2); call scan_cells(s, i, cx + 1, cx + 1, cy - 1, cy + 1)
-    case (3); call scan_cells(s, i, cx - 1, cx + 1, cy - 1, cy - 1)
-    case (4); call scan_cells(s, i, cx - 1, cx + 1, cy + 1, cy + 1)
+    case (1); call scan_cells(s, i, c - s%sx - 1, s%sx, 1)      ! the column on the left
+    case (2); call scan_cells(s, i, c - s%sx + 1, s%sx, 1)
+    case (3); call scan_cells(s, i, c - s%sx - 1, 1, 1)         ! the row below
+    case (4); call scan_cells(s, i, c + s%sx - 1, 1, 1)
     end select
     call choose(s, i)
   end subroutine predict_after_cross
@@ -542,15 +645,15 @@ contains
     integer, intent(in) :: i
     real(dp) :: tb, tc
     integer :: kb, pb, w
-    call wall_time(s, i, tb, w)
-    kb = ev_wall; pb = w
+    call wall_time(s%d(i), s%lx, s%ly, tb, pb)
+    kb = ev_wall
     call cross_time(s, i, tc, w)
     if (earlier(tc, ev_cell, w, tb, kb, pb)) then
       tb = tc; kb = ev_cell; pb = w
     end if
-    if (s%pb_j(i) /= 0) then
-      if (earlier(s%pb_t(i), ev_pair, s%pb_j(i), tb, kb, pb)) then
-        tb = s%pb_t(i); kb = ev_pair; pb = s%pb_j(i)
+    if (s%p(i)%pj /= 0) then
+      if (earlier(s%p(i)%pt, ev_pair, s%p(i)%pj, tb, kb, pb)) then
+        tb = s%p(i)%pt; kb = ev_pair; pb = s%p(i)%pj
       end if
     end if
     call set_event(s, i, tb, kb, pb)
@@ -560,12 +663,11 @@ contains
     type(ed_t), intent(inout) :: s
     integer, intent(in) :: i, k, p
     real(dp), intent(in) :: t
-    s%ev_t(i) = t
-    s%ev_kind(i) = k
-    s%ev_partner(i) = p
-    s%ev_count(i) = 0
-    if (k == ev_pair) s%ev_count(i) = s%coll(p)
-    call heap_set(s%heap, i, t)
+    s%p(i)%kind = k
+    s%p(i)%partner = p
+    s%p(i)%count = 0
+    if (k == ev_pair) s%p(i)%count = s%d(p)%coll
+    call cal_set(s, i, t)
   end subroutine set_event
 
   !> The seed's algorithm: rescan every wall and pair for the earliest event.
@@ -578,7 +680,7 @@ contains
     tb = never; kb = ev_none; ib = 0; pb = 0
     do i = 1, s%n
       if (s%state(i) /= state_free) cycle
-      call wall_time(s, i, tc, w)
+      call wall_time(s%d(i), s%lx, s%ly, tc, w)
       if (tc < tb .or. (tc == tb .and. i < ib)) then
         tb = tc; kb = ev_wall; ib = i; pb = w
       end if
@@ -586,7 +688,7 @@ contains
     do i = 1, s%n - 1
       do j = i + 1, s%n
         if (s%state(i) /= state_free .and. s%state(j) /= state_free) cycle
-        tc = pair_time(s, i, j)
+        tc = pair_time(s%d(i), s%d(j))
         if (tc >= never) cycle
         a = i; b = j
         if (s%state(a) /= state_free) then
@@ -609,15 +711,15 @@ contains
     integer :: i, k, p
     real(dp) :: te
     do
-      if (s%use_heap) then
-        i = heap_top(s%heap)
+      if (s%calendar /= cal_rescan) then
+        i = cal_top(s)
         if (i == 0) exit
-        te = s%ev_t(i)
+        te = s%p(i)%key
         if (te >= t_target) exit
-        k = s%ev_kind(i)
-        p = s%ev_partner(i)
+        k = s%p(i)%kind
+        p = s%p(i)%partner
         if (k == ev_pair) then
-          if (s%coll(p) /= s%ev_count(i)) then      ! partner changed since: stale entry
+          if (s%d(p)%coll /= s%p(i)%count) then    ! partner changed since: stale entry
             s%n_stale = s%n_stale + 1
             call predict(s, i)
             cycle
@@ -665,44 +767,47 @@ contains
     type(ed_t), intent(inout) :: s
     integer, intent(in) :: i, d
     integer :: c
-    c = s%cell(i)
+    c = s%d(i)%cell
     select case (d)
     case (1); c = c - 1
     case (2); c = c + 1
-    case (3); c = c - s%ncx
-    case (4); c = c + s%ncx
+    case (3); c = c - s%sx
+    case (4); c = c + s%sx
     end select
     call cell_delete(s, i)
     call cell_insert(s, i, c)
   end subroutine cross
 
-  subroutine move_to(s, i, te)
-    type(ed_t), intent(inout) :: s
-    integer, intent(in) :: i
+  subroutine move_to(a, te)
+    type(disk_t), intent(inout) :: a
     real(dp), intent(in) :: te
-    s%x(:, i) = s%x(:, i) + s%v(:, i)*(te - s%tl(i))
-    s%tl(i) = te
+    a%x = a%x + a%vx*(te - a%tl)
+    a%y = a%y + a%vy*(te - a%tl)
+    a%tl = te
   end subroutine move_to
 
   subroutine wall_hit(s, i, w, te)
     type(ed_t), intent(inout) :: s
     integer, intent(in) :: i, w
     real(dp), intent(in) :: te
-    integer :: ax
-    call move_to(s, i, te)
-    ax = (w + 1)/2
-    select case (w)                          ! exactly at contact with the wall
-    case (1, 3); s%x(ax, i) = s%r(i)
-    case (2); s%x(ax, i) = s%lx - s%r(i)
-    case (4); s%x(ax, i) = s%ly - s%r(i)
-    end select
-    s%wall_impulse = s%wall_impulse + 2.0_dp*s%m(i)*abs(s%v(ax, i))
-    s%v(ax, i) = -s%v(ax, i)
-    s%coll(i) = s%coll(i) + 1
+    associate (a => s%d(i))
+      call move_to(a, te)
+      select case (w)                        ! exactly at contact with the wall
+      case (1, 2)
+        a%x = merge(a%r, s%lx - a%r, w == 1)
+        s%wall_impulse = s%wall_impulse + 2.0_dp*s%m(i)*abs(a%vx)
+        a%vx = -a%vx
+      case (3, 4)
+        a%y = merge(a%r, s%ly - a%r, w == 3)
+        s%wall_impulse = s%wall_impulse + 2.0_dp*s%m(i)*abs(a%vy)
+        a%vy = -a%vy
+      end select
+      a%coll = a%coll + 1
+    end associate
     s%n_wall = s%n_wall + 1
     s%n_events = s%n_events + 1
     call log_event(s, ev_wall, i, -w)
-    if (s%use_heap) call predict(s, i)
+    if (s%calendar /= cal_rescan) call predict(s, i)
   end subroutine wall_hit
 
   !> Collision of free disk i with disk j at te: elastic (j free), or with a
@@ -713,46 +818,46 @@ contains
     real(dp), intent(in) :: te
     type(status_t), intent(inout) :: st
     real(dp) :: nx, ny, d, sg, vn, mu, jx, jy
-    call move_to(s, i, te)
-    if (s%state(j) == state_free) call move_to(s, j, te)
-    nx = s%x(1, i) - s%x(1, j)
-    ny = s%x(2, i) - s%x(2, j)
+    call move_to(s%d(i), te)
+    if (s%state(j) == state_free) call move_to(s%d(j), te)
+    nx = s%d(i)%x - s%d(j)%x
+    ny = s%d(i)%y - s%d(j)%y
     d = sqrt(nx*nx + ny*ny)
-    sg = s%r(i) + s%r(j)
+    sg = s%d(i)%r + s%d(j)%r
     if (d < sg*(1.0_dp - s%guard_tol) .or. .not. ieee_is_finite(d)) then
       call guard_fail(s, st, 'overlap at contact', i, j, sg - d)
       return
     end if
     nx = nx/d
     ny = ny/d
-    vn = (s%v(1, i) - s%v(1, j))*nx + (s%v(2, i) - s%v(2, j))*ny   ! < 0: approaching
+    vn = (s%d(i)%vx - s%d(j)%vx)*nx + (s%d(i)%vy - s%d(j)%vy)*ny   ! < 0: approaching
     s%n_events = s%n_events + 1
     if (s%state(j) /= state_free) then
       if (s%sticking .and. .not. (s%last_bounces .and. s%n_free == 1)) then
         call stick(s, i, j, te)
         return
       end if
-      s%v(1, i) = s%v(1, i) - 2.0_dp*vn*nx                          ! mirror off the static disk
-      s%v(2, i) = s%v(2, i) - 2.0_dp*vn*ny
-      s%coll(i) = s%coll(i) + 1
+      s%d(i)%vx = s%d(i)%vx - 2.0_dp*vn*nx                          ! mirror off the static disk
+      s%d(i)%vy = s%d(i)%vy - 2.0_dp*vn*ny
+      s%d(i)%coll = s%d(i)%coll + 1
       s%n_bounce = s%n_bounce + 1
       call log_event(s, ev_bounce, i, j)
-      if (s%use_heap) call predict(s, i)
+      if (s%calendar /= cal_rescan) call predict(s, i)
       return
     end if
     mu = s%m(i)*s%m(j)/(s%m(i) + s%m(j))
     jx = 2.0_dp*mu*vn*nx                                            ! impulse on j (= -dp_i)
     jy = 2.0_dp*mu*vn*ny
-    s%v(1, i) = s%v(1, i) - jx/s%m(i)
-    s%v(2, i) = s%v(2, i) - jy/s%m(i)
-    s%v(1, j) = s%v(1, j) + jx/s%m(j)
-    s%v(2, j) = s%v(2, j) + jy/s%m(j)
+    s%d(i)%vx = s%d(i)%vx - jx/s%m(i)
+    s%d(i)%vy = s%d(i)%vy - jy/s%m(i)
+    s%d(j)%vx = s%d(j)%vx + jx/s%m(j)
+    s%d(j)%vy = s%d(j)%vy + jy/s%m(j)
     s%virial = s%virial - 2.0_dp*mu*vn*d                            ! r_ij . dp_i > 0
-    s%coll(i) = s%coll(i) + 1
-    s%coll(j) = s%coll(j) + 1
+    s%d(i)%coll = s%d(i)%coll + 1
+    s%d(j)%coll = s%d(j)%coll + 1
     s%n_pair = s%n_pair + 1
     call log_event(s, ev_pair, min(i, j), max(i, j))
-    if (s%use_heap) then
+    if (s%calendar /= cal_rescan) then
       call predict(s, i)
       call predict(s, j)
     end if
@@ -763,42 +868,42 @@ contains
     type(ed_t), intent(inout) :: s
     integer, intent(in) :: i, j
     real(dp), intent(in) :: te
-    integer :: cx, cy, ix, iy, k
+    integer :: c, ix, iy, k
     real(dp) :: tc
-    s%v(:, i) = 0.0_dp
+    s%d(i)%vx = 0.0_dp
+    s%d(i)%vy = 0.0_dp
     s%state(i) = state_stuck
     s%parent(i) = j
     s%t_stick(i) = te
     s%ev_stuck(i) = s%n_events
-    s%coll(i) = s%coll(i) + 1
+    s%d(i)%coll = s%d(i)%coll + 1
     s%n_free = s%n_free - 1
     s%n_stick = s%n_stick + 1
     s%n_new = s%n_new + 1
     s%new_stuck(s%n_new) = i
     call log_event(s, ev_stick, i, j)
-    if (.not. s%use_heap) return
-    call heap_remove(s%heap, i)
+    if (s%calendar == cal_rescan) return
+    call cal_remove(s, i)
     ! A static disk predicts nothing: its free neighbours must learn of it now.
-    cx = mod(s%cell(i), s%ncx)
-    cy = s%cell(i)/s%ncx
-    do iy = max(0, cy - 1), min(s%ncy - 1, cy + 1)
-      do ix = max(0, cx - 1), min(s%ncx - 1, cx + 1)
-        k = s%head(ix + s%ncx*iy)
+    c = s%d(i)%cell
+    do iy = -1, 1
+      do ix = -1, 1
+        k = s%head(c + ix + s%sx*iy)
         do while (k /= 0)
           if (s%state(k) == state_free) then
-            tc = pair_time(s, k, i)
+            tc = pair_time(s%d(k), s%d(i))
             if (tc < never) then
               ! against k's best pair (kept across its crossings), not only its entry
-              if (earlier(tc, ev_pair, i, s%pb_t(k), ev_pair, s%pb_j(k))) then
-                s%pb_t(k) = tc
-                s%pb_j(k) = i
-                s%pb_count(k) = s%coll(i)
-                if (earlier(tc, ev_pair, i, s%ev_t(k), s%ev_kind(k), s%ev_partner(k))) &
+              if (earlier(tc, ev_pair, i, s%p(k)%pt, ev_pair, s%p(k)%pj)) then
+                s%p(k)%pt = tc
+                s%p(k)%pj = i
+                s%p(k)%pcount = s%d(i)%coll
+                if (earlier(tc, ev_pair, i, s%p(k)%key, s%p(k)%kind, s%p(k)%partner)) &
                      call set_event(s, k, tc, ev_pair, i)
               end if
             end if
           end if
-          k = s%next(k)
+          k = s%d(k)%next
         end do
       end do
     end do
@@ -844,7 +949,8 @@ contains
     integer, intent(in) :: i
     real(dp), intent(in) :: t
     real(dp) :: p(2)
-    p = s%x(:, i) + s%v(:, i)*(t - s%tl(i))
+    p(1) = s%d(i)%x + s%d(i)%vx*(t - s%d(i)%tl)
+    p(2) = s%d(i)%y + s%d(i)%vy*(t - s%d(i)%tl)
   end function ed_position
 
   pure real(dp) function ed_kinetic(s) result(e)
@@ -852,7 +958,7 @@ contains
     integer :: i
     e = 0
     do i = 1, s%n
-      if (s%state(i) == state_free) e = e + 0.5_dp*s%m(i)*(s%v(1, i)**2 + s%v(2, i)**2)
+      if (s%state(i) == state_free) e = e + 0.5_dp*s%m(i)*(s%d(i)%vx**2 + s%d(i)%vy**2)
     end do
   end function ed_kinetic
 
@@ -862,7 +968,7 @@ contains
     integer :: i
     p = 0
     do i = 1, s%n
-      if (s%state(i) == state_free) p = p + s%m(i)*s%v(:, i)
+      if (s%state(i) == state_free) p = p + s%m(i)*[s%d(i)%vx, s%d(i)%vy]
     end do
   end function ed_momentum
 
@@ -872,32 +978,31 @@ contains
     type(ed_t), intent(in) :: s
     real(dp), intent(in) :: t
     type(status_t), intent(inout) :: st
-    integer :: i, j, c, cx, cy, ix, iy, wi, wj
-    real(dp) :: pi_(2), pj(2), d, sg, worst, ov
+    integer :: i, j, c, ix, iy, wi, wj
+    real(dp) :: pi_(2), pj(2), d, sg, worst, ov, ri
     character(len=400) :: buf
     worst = 0; wi = 0; wj = 0
     do i = 1, s%n
       pi_ = ed_position(s, i, t)
-      ov = max(s%r(i) - pi_(1), pi_(1) + s%r(i) - s%lx, s%r(i) - pi_(2), pi_(2) + s%r(i) - s%ly)
-      if (ov > s%guard_tol*s%r(i) .and. ov > worst) then
+      ri = s%d(i)%r
+      ov = max(ri - pi_(1), pi_(1) + ri - s%lx, ri - pi_(2), pi_(2) + ri - s%ly)
+      if (ov > s%guard_tol*ri .and. ov > worst) then
         worst = ov; wi = i; wj = 0
       end if
       c = cell_of(s, pi_(1), pi_(2))
-      cx = mod(c, s%ncx)
-      cy = c/s%ncx
-      do iy = max(0, cy - 1), min(s%ncy - 1, cy + 1)
-        do ix = max(0, cx - 1), min(s%ncx - 1, cx + 1)
-          j = s%head(ix + s%ncx*iy)
+      do iy = -1, 1
+        do ix = -1, 1
+          j = s%head(c + ix + s%sx*iy)
           do while (j /= 0)
             if (j > i) then
               pj = ed_position(s, j, t)
               d = sqrt(sum((pi_ - pj)**2))
-              sg = s%r(i) + s%r(j)
+              sg = ri + s%d(j)%r
               if (sg - d > s%guard_tol*sg .and. sg - d > worst) then
                 worst = sg - d; wi = i; wj = j
               end if
             end if
-            j = s%next(j)
+            j = s%d(j)%next
           end do
         end do
       end do

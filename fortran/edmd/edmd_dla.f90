@@ -23,7 +23,7 @@ module edmd_dla
        put_str, put_logical, int_str, real_str
   use edmd_core, only: ed_t, ed_setup, ed_place_random, ed_place_lattice, ed_velocities, &
        ed_start, ed_run_until, ed_position, ed_kinetic, ed_momentum, ed_check_overlaps, &
-       ed_rebuild_cells, ed_put, ed_sort_by_cell, rng_t, state_free, state_seed
+       ed_put, ed_sort_by_cell, ed_cells, ed_load_cells, rng_t, state_free, state_seed
   implicit none
   private
 
@@ -58,7 +58,7 @@ module edmd_dla
     logical :: last_bounces = .false.
     logical :: stop_when_done = .true.
     ! &run
-    character(len=name_len) :: calendar = 'heap'
+    character(len=name_len) :: calendar = 'buckets'
     real(dp) :: tick = 0.02_dp                        !< [tau] (the seed's frame dt)
     real(dp) :: t_end = 100.0_dp                      !< [tau]
     real(dp) :: guard_tol = 1.0e-9_dp                 !< overlap allowed / (r_i + r_j)
@@ -220,7 +220,7 @@ contains
          int_str(sum(self%count(1:self%n_species)))//': packing fraction '//real_str(eta)// &
          ' of the box: allowed < 0.9 (close packing of disks: 0.9069)')
     call check_choice(path, 'run', 'calendar', self%calendar, [character(len=name_len) :: &
-         'heap', 'rescan'], st)
+         'buckets', 'heap', 'rescan'], st)
     call check_real(path, 'run', 't_end', self%t_end, 0.0_dp, 1.0e12_dp, .false., st)
     if (st%code /= 0) return
     call check_real(path, 'run', 'tick', self%tick, self%t_end/real(max_ticks, dp), self%t_end, &
@@ -308,12 +308,11 @@ contains
       end if
       i0 = i0 + int(self%count(k))
     end do
-    call ed_setup(self%s, self%lx, self%ly, r, m, self%calendar == 'heap', self%sticking, &
+    call ed_setup(self%s, self%lx, self%ly, r, m, trim(self%calendar), self%sticking, &
          self%last_bounces, self%log_events)
     self%s%guard_tol = self%guard_tol
     if (first == 2) then
       self%s%state(1) = state_seed
-      self%s%x(:, 1) = [self%seed_x, self%seed_y]
       call ed_put(self%s, 1, self%seed_x, self%seed_y)
     end if
     g%s = self%seed
@@ -329,8 +328,8 @@ contains
     end if
     if (st%code /= 0) return
     if (self%placement == 'explicit') then
-      self%s%v(1, first:) = self%vx0(1:n - first + 1)
-      self%s%v(2, first:) = self%vy0(1:n - first + 1)
+      self%s%d(first:)%vx = self%vx0(1:n - first + 1)
+      self%s%d(first:)%vy = self%vy0(1:n - first + 1)
     else
       call ed_velocities(self%s, g, trim(self%velocities), self%kt)
     end if
@@ -387,7 +386,8 @@ contains
     call put_logical(text, 'stop_when_done', self%stop_when_done, 'end when no free disk is left')
     text = text//'/'//achar(10)
     text = text//'&run'//achar(10)
-    call put_str(text, 'calendar', self%calendar, 'heap: O(log N); rescan: the seed''s O(N^2)')
+    call put_str(text, 'calendar', self%calendar, 'buckets: O(1); heap: O(log N); rescan: '// &
+         'the seed''s O(N^2); same events')
     call put_real(text, 'tick', self%tick, 'tau (unit of work)')
     call put_real(text, 't_end', self%t_end, 'tau')
     call put_real(text, 'guard_tol', self%guard_tol, 'overlap allowed / (r_i + r_j)')
@@ -468,7 +468,7 @@ contains
     real(dp), intent(in) :: t
     type(status_t), intent(inout) :: st
     integer :: i
-    real(dp), allocatable :: p(:, :)
+    real(dp), allocatable :: p(:, :), c(:)
     character(len=400) :: line
     allocate(p(2, self%s%n))
     do i = 1, self%s%n
@@ -479,9 +479,14 @@ contains
       call frames_put(self%frames_bin, [(i, i = 1, self%s%n)], st)
       call frames_put(self%frames_bin, p(1, :), st)
       call frames_put(self%frames_bin, p(2, :), st)
-      call frames_put(self%frames_bin, self%s%v(1, :), st)
-      call frames_put(self%frames_bin, self%s%v(2, :), st)
-      call frames_put(self%frames_bin, self%s%r, st)
+      ! copies of the record components (a component section given to transfer reads whole
+      ! records with gfortran 12)
+      c = self%s%d%vx
+      call frames_put(self%frames_bin, c, st)
+      c = self%s%d%vy
+      call frames_put(self%frames_bin, c, st)
+      c = self%s%d%r
+      call frames_put(self%frames_bin, c, st)
       call frames_put(self%frames_bin, self%s%m, st)
       call frames_put(self%frames_bin, self%s%state, st)
       call frames_end(self%frames_bin, st)
@@ -489,7 +494,8 @@ contains
     if (.not. text_frames(self)) return
     do i = 1, self%s%n
       write(line, '(i0,1x,'//rfmt//',1x,i0,6(1x,'//rfmt//'),1x,i0)') &
-           self%step, t, i, p(:, i), self%s%v(:, i), self%s%r(i), self%s%m(i), self%s%state(i)
+           self%step, t, i, p(:, i), self%s%d(i)%vx, self%s%d(i)%vy, self%s%d(i)%r, self%s%m(i), &
+           self%s%state(i)
       call table_line(self%frames, trim(line), st)
     end do
   end subroutine frame_rows
@@ -500,7 +506,7 @@ contains
     type(status_t), intent(inout) :: st
     character(len=300) :: line
     write(line, '(i0,1x,i0,4(1x,'//rfmt//'),1x,i0,1x,i0)') &
-         self%n_members, i, self%s%x(1, i), self%s%x(2, i), self%s%r(i), self%s%t_stick(i), &
+         self%n_members, i, self%s%d(i)%x, self%s%d(i)%y, self%s%d(i)%r, self%s%t_stick(i), &
          self%s%ev_stuck(i), self%s%parent(i)
     call table_line(self%aggregate, trim(line), st)
     self%n_members = self%n_members + 1
@@ -615,41 +621,68 @@ contains
     class(dla_t), intent(in) :: self
     type(ckpt_writer_t), intent(inout) :: w
     integer(int8), parameter :: b(0) = [integer(int8) ::]
+    real(dp), allocatable :: xy(:, :), tl(:)     ! heap, not stack: N up to 1e7
+    integer(i8), allocatable :: coll(:)
+    integer, allocatable :: cell(:)
     associate (s => self%s)
       call ckpt_put(w, [transfer(s%n, b), transfer(self%step, b), transfer(self%n_ticks, b), &
            transfer(self%t_hist, b), transfer(self%n_members, b), transfer(s%t, b), &
            transfer(s%n_events, b), transfer(s%n_pair, b), transfer(s%n_wall, b), &
            transfer(s%n_stick, b), transfer(s%n_bounce, b), transfer(s%n_cross, b), &
            transfer(s%n_stale, b), transfer(s%virial, b), transfer(s%wall_impulse, b)])
-      call ckpt_put(w, transfer(s%x, b)); call ckpt_put(w, transfer(s%v, b))
-      call ckpt_put(w, transfer(s%tl, b)); call ckpt_put(w, transfer(s%state, b))
-      call ckpt_put(w, transfer(s%coll, b)); call ckpt_put(w, transfer(s%cell, b))
+      ! copies: transfer of a component section (s%d%tl) reads the whole records (gfortran 12)
+      xy = pairs(s%d%x, s%d%y)
+      call ckpt_put(w, transfer(xy, b))
+      xy = pairs(s%d%vx, s%d%vy)
+      call ckpt_put(w, transfer(xy, b))
+      tl = s%d%tl
+      call ckpt_put(w, transfer(tl, b)); call ckpt_put(w, transfer(s%state, b))
+      coll = s%d%coll
+      cell = ed_cells(s)
+      call ckpt_put(w, transfer(coll, b)); call ckpt_put(w, transfer(cell, b))
       call ckpt_put(w, transfer(s%parent, b)); call ckpt_put(w, transfer(s%t_stick, b))
       call ckpt_put(w, transfer(s%ev_stuck, b))
     end associate
   end subroutine save_state
+
+  !> The (2, n) array of (a(i), b(i)) (the checkpoint's layout of positions and velocities).
+  pure function pairs(a, b) result(ab)
+    real(dp), intent(in) :: a(:), b(:)
+    real(dp) :: ab(2, size(a))
+    ab(1, :) = a
+    ab(2, :) = b
+  end function pairs
 
   subroutine restore_state(self, u, st)
     class(dla_t), intent(inout) :: self
     integer, intent(in) :: u
     type(status_t), intent(inout) :: st
     integer :: ios, n
+    real(dp), allocatable :: x(:, :), v(:, :), tl(:)
+    integer(i8), allocatable :: coll(:)
+    integer, allocatable :: cell(:)
     read(u, iostat=ios) n
     if (ios == 0 .and. n /= self%s%n) ios = 1
+    if (ios == 0) allocate(x(2, n), v(2, n), tl(n), coll(n), cell(n))
     associate (s => self%s)
       if (ios == 0) read(u, iostat=ios) self%step, self%n_ticks, self%t_hist, self%n_members, &
            s%t, s%n_events, s%n_pair, s%n_wall, s%n_stick, s%n_bounce, s%n_cross, s%n_stale, &
-           s%virial, s%wall_impulse, s%x, s%v, s%tl, s%state, s%coll, s%cell, s%parent, &
+           s%virial, s%wall_impulse, x, v, tl, s%state, coll, cell, s%parent, &
            s%t_stick, s%ev_stuck
       if (ios == 0 .and. (self%step < 0 .or. self%step > self%n_ticks)) ios = 1
-      if (ios == 0 .and. (any(s%cell < 0) .or. any(s%cell >= s%ncx*s%ncy))) ios = 1
+      if (ios == 0) then
+        if (.not. ed_load_cells(s, cell)) ios = 1
+      end if
       if (ios /= 0) then
         call set_error(st, exit_io, 'checkpoint payload does not match the scene')
         return
       end if
+      s%d%x = x(1, :); s%d%y = x(2, :)
+      s%d%vx = v(1, :); s%d%vy = v(2, :)
+      s%d%tl = tl
+      s%d%coll = coll
       s%n_new = 0
       s%n_log = 0
-      call ed_rebuild_cells(s)
       call ed_start(s)
     end associate
   end subroutine restore_state
