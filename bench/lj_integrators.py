@@ -11,13 +11,15 @@ the step-0 checkpoint and two binary frames included in the time per step).
 
 Reproduce (from the repository root, about 2 minutes):
 
-    .venv/bin/python bench/lj_integrators.py          # writes bench/results/lj_integrators.csv
+    .venv/bin/python bench/lj_integrators.py              # writes bench/results/lj_integrators.csv, lj_skin.csv
+    .venv/bin/python bench/lj_integrators.py --skin-only  # only the skin scan (lj_skin.csv)
 
 Units: length a, time T = sqrt(a/g), energy m g a.
 """
 from __future__ import annotations
 
 import json
+import resource
 import subprocess
 import sys
 import tempfile
@@ -37,13 +39,19 @@ METHODS = ("euler", "semi_implicit_euler", "velocity_verlet")
 CONSERVATIVE = {"field.type": "none", "physics.alpha": 0.0, "walls.gamma": 1.0}
 
 
+LAST_CPU = [0.0]   # CPU seconds of the last run (robust to other load on a shared machine)
+
+
 def run(tmp: Path, name: str, over: dict[str, Any]) -> tuple[int, Path]:
     """Run the demo scene with overrides through the executable; (exit code, run dir)."""
     sc = Scene.read(DEMO).with_overrides({"output.checkpoint_every": 0, **over})
     path = sc.write(tmp / f"{name}.nml")
     out = tmp / name
+    r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     r = subprocess.run([str(engine_executable()), str(path), "--out", str(out), "--quiet"],
                        capture_output=True, text=True)
+    r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    LAST_CPU[0] = (r1.ru_utime + r1.ru_stime) - (r0.ru_utime + r0.ru_stime)
     return r.returncode, out
 
 
@@ -78,6 +86,7 @@ def trajectory_error(tmp: Path, method: str, dt: float, ref: list[np.ndarray],
         return row
     meta = json.loads((out / "run.json").read_text())
     row["wall_s_for_4T"] = meta["wall_time_s"]
+    row["cpu_s_for_4T"] = LAST_CPU[0]
     for t, got, want in zip(times, at_times(out, dt, times), ref):
         row[f"err_x_t{t:g}"] = float(np.abs(got - want).max())
     return row
@@ -109,6 +118,14 @@ def largest_stable(tmp: Path, method: str, lo: float = 1e-4, hi: float = 0.5) ->
 
 
 def main() -> int:
+    if sys.argv[1:] == ["--skin-only"]:
+        with tempfile.TemporaryDirectory() as td:
+            skins = skin_scan(Path(td))
+        dest = ROOT / "bench" / "results"
+        dest.mkdir(exist_ok=True)
+        skins.to_csv(dest / "lj_skin.csv", index=False)
+        print(skins.to_string(index=False))
+        return 0
     times = (1.0, 4.0)
     rows: list[dict[str, float]] = []
     with tempfile.TemporaryDirectory() as td:
@@ -154,6 +171,7 @@ def skin_scan(tmp: Path) -> pd.DataFrame:
         meta = json.loads((d / "run.json").read_text())
         out[skin] = positions(d)[1000]
         rows.append({"skin": skin, "us_per_step": 1e6 * meta["wall_time_per_step_s"],
+                     "cpu_us_per_step": 1e6 * LAST_CPU[0] / 1000,
                      "list_builds": meta["list_builds"],
                      "pairs_per_step": meta["pairs_evaluated"] / 1001,
                      "max_dx_vs_skin_0.6": float(np.abs(out[skin] - out[0.6]).max())})

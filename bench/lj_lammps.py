@@ -170,7 +170,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         })
         print(rows[-1], flush=True)
     df = pd.DataFrame(rows)
-    path = common.save_table(df, "lj_lammps")
+    path = common.save_table(df, "lj_lammps.csv")
     with pd.option_context("display.width", 200, "display.float_format", "{:.4g}".format):
         print(df.to_string(index=False))
     print(f"wrote {path}")
