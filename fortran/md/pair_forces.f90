@@ -189,8 +189,8 @@ contains
   end subroutine pair_forces_all
 
   !> Half neighbour list (pairs i < j stored once, CSR: the neighbours of i
-  !> are nbr(start(i) : start(i+1)-1)). Pairs at r >= r_c are skipped when
-  !> check is set (the thesis variant r_c = r_v uses every listed pair).
+  !> are nbr(start(i) : start(i+1)-1), own(k) the row of pair k). Pairs at r >= r_c
+  !> are skipped when check is set (the thesis variant r_c = r_v uses every listed pair).
   subroutine pair_forces_list(n, x, y, mu, wsin, k_pair, rc2, shift4, check, with_r3, &
        start, nbr, fx, fy, s3, r2min, law, own)
     integer, intent(in) :: n
@@ -202,7 +202,7 @@ contains
     real(dp), intent(inout) :: fx(n), fy(n), s3(n)
     real(dp), intent(out) :: r2min    !< smallest squared distance among listed pairs
     type(lj_law_t), intent(in), optional :: law   !< Lennard-Jones instead of the dipole law
-    integer, intent(in), optional :: own(:)      !< with law: the row of each pair (nlist own)
+    integer, intent(in) :: own(:)     !< the row i of each listed pair (nlist_t own)
     call threaded_pass(mode_list, kernel_of(law), law_of(law), n, x, y, mu, wsin, k_pair, &
          0.0_dp, rc2, shift4, check, with_r3, start, nbr, fx, fy, s3, r2min, own)
   end subroutine pair_forces_list
@@ -326,121 +326,114 @@ contains
     r2low = low
   end subroutine row_segment
 
-  !> Rows i_lo..i_hi of a half neighbour list. Two passes per chunk: gather
-  !> and evaluate (vectorisable), then accumulate on i and scatter on j
-  !> (reactions on j > hi_direct to the spill arrays, as in rows_all).
-  subroutine rows_list(i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, &
-       shift4, check, with_r3, start, nbr, fx, fy, s3, sx, sy, ss, r2low)
-    integer, intent(in) :: i_lo, i_hi, hi_direct, n
+  !> Rows i_lo..i_hi of a half list taken as one flat sequence of pairs (own(k) = the row i of
+  !> pair k): chunks of 256 pairs whatever the row lengths (a row holds ~5 pairs at the
+  !> production cut-offs, too few to vectorise row by row). Per chunk, one vectorised loop of
+  !> the law (distances gathered, the kernel branch-free), then chunk_sums. The law is chosen
+  !> once per chunk, outside the loops. Dipole: pairs at r >= r_c are skipped when check is
+  !> set, and the r^-3 friction sums (with_r3) go along. Reactions on j > hi_direct go to the
+  !> spill arrays sx, sy, ss (see threaded_pass).
+  subroutine rows_pairs(kernel, l, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, &
+       shift4, check, with_r3, start, nbr, own, fx, fy, s3, sx, sy, ss, r2low)
+    integer, intent(in) :: kernel, i_lo, i_hi, hi_direct, n
+    type(lj_law_t), intent(in) :: l
     real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair, rc2, shift4
     logical, intent(in) :: check, with_r3
-    integer, intent(in) :: start(n + 1), nbr(:)
-    real(dp), intent(inout) :: fx(n), fy(n), s3(n)
-    real(dp), intent(inout) :: sx(*), sy(*), ss(*)
-    real(dp), intent(inout) :: r2low   !< running minimum of r^2
-    integer, parameter :: chunk = 256
-    integer :: i, j, m, k0, nk
-    logical :: direct
-    real(dp) :: xi, yi, ci, wi, fxi, fyi, s3i, r2, keep, low
-    real(dp) :: dxs(chunk), dys(chunk), cs(chunk), r3s(chunk)
-    low = r2low   ! local running minimum (see row_segment)
-    do i = i_lo, i_hi
-      xi = x(i); yi = y(i)
-      ci = k_pair*mu(i)
-      wi = wsin(i)
-      fxi = 0; fyi = 0; s3i = 0
-      do k0 = start(i), start(i + 1) - 1, chunk
-        nk = min(chunk, start(i + 1) - k0)
-        do m = 1, nk
-          j = nbr(k0 + m - 1)
-          dxs(m) = xi - x(j)
-          dys(m) = yi - y(j)
-          r2 = dxs(m)*dxs(m) + dys(m)*dys(m)
-          low = min(low, r2)
-          keep = 1
-          if (check) keep = merge(1.0_dp, 0.0_dp, r2 < rc2)
-          call dipole_kernel(r2, shift4, cs(m), r3s(m))
-          cs(m) = keep*ci*mu(j)*cs(m)
-          r3s(m) = keep*r3s(m)
-        end do
-        direct = hi_direct >= n
-        if (.not. direct) direct = maxval(nbr(k0:k0 + nk - 1)) <= hi_direct
-        if (direct) then   ! the usual case: every j is ours
-          do m = 1, nk
-            j = nbr(k0 + m - 1)
-            fxi = fxi + cs(m)*dxs(m)
-            fyi = fyi + cs(m)*dys(m)
-            fx(j) = fx(j) - cs(m)*dxs(m)
-            fy(j) = fy(j) - cs(m)*dys(m)
-          end do
-          if (with_r3) then
-            do m = 1, nk
-              j = nbr(k0 + m - 1)
-              s3i = s3i + wsin(j)*r3s(m)
-              s3(j) = s3(j) + wi*r3s(m)
-            end do
-          end if
-        else                          ! rows next to a later thread's block
-          do m = 1, nk
-            j = nbr(k0 + m - 1)
-            fxi = fxi + cs(m)*dxs(m)
-            fyi = fyi + cs(m)*dys(m)
-            if (with_r3) s3i = s3i + wsin(j)*r3s(m)
-            if (j <= hi_direct) then
-              fx(j) = fx(j) - cs(m)*dxs(m)
-              fy(j) = fy(j) - cs(m)*dys(m)
-              if (with_r3) s3(j) = s3(j) + wi*r3s(m)
-            else
-              sx(j) = sx(j) - cs(m)*dxs(m)
-              sy(j) = sy(j) - cs(m)*dys(m)
-              if (with_r3) ss(j) = ss(j) + wi*r3s(m)
-            end if
-          end do
-        end if
-      end do
-      fx(i) = fx(i) + fxi
-      fy(i) = fy(i) + fyi
-      if (with_r3) s3(i) = s3(i) + s3i
-    end do
-    r2low = low
-  end subroutine rows_list
-
-  !> Lennard-Jones over the pairs of rows i_lo..i_hi of a half list, taken as one flat
-  !> sequence (own(k) = the row of pair k): chunks of 256 pairs whatever the row lengths
-  !> (at the seed's densities a row holds ~5 pairs, too few to vectorise row by row).
-  !> Reactions on j > hi_direct go to the spill arrays sx, sy (see threaded_pass).
-  subroutine rows_pairs(l, i_lo, i_hi, hi_direct, n, x, y, start, nbr, own, fx, fy, sx, sy, &
-       r2low)
-    type(lj_law_t), intent(in) :: l
-    integer, intent(in) :: i_lo, i_hi, hi_direct, n
-    real(dp), intent(in) :: x(n), y(n)
     integer, intent(in) :: start(n + 1), nbr(:), own(:)
-    real(dp), intent(inout) :: fx(n), fy(n), sx(*), sy(*)
+    real(dp), intent(inout) :: fx(n), fy(n), s3(n), sx(*), sy(*), ss(*)
     real(dp), intent(inout) :: r2low
     integer, parameter :: chunk = 256
-    integer :: i, j, m, k0, nk, k_hi, ic
-    real(dp) :: low, gx, gy, ax, ay
-    real(dp) :: dxs(chunk), dys(chunk), r2s(chunk), cs(chunk)
+    integer :: i, j, m, k, k0, nk, k_hi
+    logical :: r3
+    real(dp) :: low, rk2, r2, s5, r3p, keep
+    real(dp) :: dxs(chunk), dys(chunk), r2s(chunk), cs(chunk), t3i(chunk), t3j(chunk)
     low = r2low
+    r3 = with_r3 .and. kernel == kernel_dipole
+    rk2 = huge(1.0_dp)
+    if (check) rk2 = rc2
     k_hi = start(i_hi + 1) - 1
     do k0 = start(i_lo), k_hi, chunk
       nk = min(chunk, k_hi - k0 + 1)
+      if (kernel == kernel_dipole) then
+        do m = 1, nk
+          k = k0 + m - 1
+          i = own(k)
+          j = nbr(k)
+          dxs(m) = x(i) - x(j)
+          dys(m) = y(i) - y(j)
+          r2 = dxs(m)*dxs(m) + dys(m)*dys(m)
+          low = min(low, r2)
+          keep = merge(1.0_dp, 0.0_dp, r2 < rk2)
+          call dipole_kernel(r2, shift4, s5, r3p)
+          cs(m) = keep*k_pair*mu(i)*mu(j)*s5
+          r3p = keep*r3p
+          t3i(m) = wsin(j)*r3p    ! onto s3(i)
+          t3j(m) = wsin(i)*r3p    ! onto s3(j)
+        end do
+      else
+        do m = 1, nk
+          k = k0 + m - 1
+          i = own(k)
+          j = nbr(k)
+          dxs(m) = x(i) - x(j)
+          dys(m) = y(i) - y(j)
+          r2s(m) = dxs(m)*dxs(m) + dys(m)*dys(m)
+          low = min(low, r2s(m))
+        end do
+        call lj_chunk(l, nk, r2s, cs)
+      end if
+      call chunk_sums(nk, own(k0:k0 + nk - 1), nbr(k0:k0 + nk - 1), hi_direct, r3, cs, dxs, &
+           dys, t3i, t3j, fx, fy, s3, sx, sy, ss)
+    end do
+    r2low = low
+  end subroutine rows_pairs
+
+  !> The sums of one chunk of pairs (i = own(m), j = nbr(m)) with force factors cs and
+  !> separations dxs, dys: the action on i summed in registers while its row lasts (pairs
+  !> come in row order: no store-to-load chain through fx(i) from one pair to the next), the
+  !> reaction on j directly (j <= hi_direct) or to the spill arrays. With r3 also
+  !> s3(i) += t3i, s3(j) += t3j (a separate loop without them otherwise).
+  subroutine chunk_sums(nk, own, nbr, hi_direct, r3, cs, dxs, dys, t3i, t3j, fx, fy, s3, &
+       sx, sy, ss)
+    integer, intent(in) :: nk, own(nk), nbr(nk), hi_direct
+    logical, intent(in) :: r3
+    real(dp), intent(in) :: cs(nk), dxs(nk), dys(nk), t3i(nk), t3j(nk)
+    real(dp), intent(inout) :: fx(*), fy(*), s3(*), sx(*), sy(*), ss(*)
+    integer :: m, i, j, ic
+    real(dp) :: gx, gy, ax, ay, a3
+    ic = own(1)
+    ax = 0; ay = 0; a3 = 0
+    if (r3) then
       do m = 1, nk
-        i = own(k0 + m - 1)
-        j = nbr(k0 + m - 1)
-        dxs(m) = x(i) - x(j)
-        dys(m) = y(i) - y(j)
-        r2s(m) = dxs(m)*dxs(m) + dys(m)*dys(m)
-        low = min(low, r2s(m))
+        i = own(m)
+        j = nbr(m)
+        if (i /= ic) then
+          fx(ic) = fx(ic) + ax
+          fy(ic) = fy(ic) + ay
+          s3(ic) = s3(ic) + a3
+          ic = i
+          ax = 0; ay = 0; a3 = 0
+        end if
+        gx = cs(m)*dxs(m)
+        gy = cs(m)*dys(m)
+        ax = ax + gx
+        ay = ay + gy
+        a3 = a3 + t3i(m)
+        if (j <= hi_direct) then
+          fx(j) = fx(j) - gx
+          fy(j) = fy(j) - gy
+          s3(j) = s3(j) + t3j(m)
+        else
+          sx(j) = sx(j) - gx
+          sy(j) = sy(j) - gy
+          ss(j) = ss(j) + t3j(m)
+        end if
       end do
-      call lj_chunk(l, nk, r2s, cs)
-      ! the action on i summed in registers while the row lasts (pairs are in row order):
-      ! no store-to-load chain through fx(i) from one pair to the next
-      ic = own(k0)
-      ax = 0; ay = 0
+      s3(ic) = s3(ic) + a3
+    else
       do m = 1, nk
-        i = own(k0 + m - 1)
-        j = nbr(k0 + m - 1)
+        i = own(m)
+        j = nbr(m)
         if (i /= ic) then
           fx(ic) = fx(ic) + ax
           fy(ic) = fy(ic) + ay
@@ -459,11 +452,10 @@ contains
           sy(j) = sy(j) - gy
         end if
       end do
-      fx(ic) = fx(ic) + ax
-      fy(ic) = fy(ic) + ay
-    end do
-    r2low = low
-  end subroutine rows_pairs
+    end if
+    fx(ic) = fx(ic) + ax
+    fy(ic) = fy(ic) + ay
+  end subroutine chunk_sums
 
   !> Run the rows on the OpenMP threads, deterministically and without
   !> per-step buffers. Thread t takes a fixed block of rows lo_t..hi_t
@@ -483,7 +475,7 @@ contains
     integer, intent(in) :: start(:), nbr(:)
     real(dp), intent(inout) :: fx(n), fy(n), s3(n)
     real(dp), intent(out) :: r2low
-    integer, intent(in), optional :: own(:)   !< row of each listed pair (Lennard-Jones lists)
+    integer, intent(in), optional :: own(:)   !< row of each listed pair (lists only)
     real(dp) :: low(64)
     integer :: nt, t, lo, hi, i, u
     integer :: bound(0:64)
@@ -545,12 +537,9 @@ contains
       if (mode == mode_all) then
         call rows_all(kernel, l, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, r2_min, &
              with_r3, ax, ay, a3, bx, by, b3, lw)
-      else if (kernel == kernel_dipole) then
-        call rows_list(i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, &
-             shift4, check, with_r3, start, nbr, ax, ay, a3, bx, by, b3, lw)
       else
-        call rows_pairs(l, i_lo, i_hi, hi_direct, n, x, y, start, nbr, own, ax, ay, bx, by, &
-             lw)
+        call rows_pairs(kernel, l, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, &
+             shift4, check, with_r3, start, nbr, own, ax, ay, a3, bx, by, b3, lw)
       end if
     end subroutine rows
     !> Last row of the first k shares (0 for k = 0, n for k = nt).
