@@ -94,7 +94,7 @@ contains
         if (allocated(nl%nbr)) deallocate(nl%nbr)
         allocate(nl%nbr(nnb))
         read(u, iostat=ios) nl%cell_start, nl%cell_part, nl%start, nl%nbr, nl%xref, nl%yref
-        if (ios == 0) call nlist_owners(nl, s%n)   ! own follows from start (not stored)
+        if (ios == 0 .and. nl%valid) call nlist_owners(nl, s%n)   ! own follows from start
       end if
     end if
     if (ios == 0) read(u, iostat=ios) has_piston

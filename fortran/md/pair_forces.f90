@@ -198,11 +198,12 @@ contains
     real(dp), intent(in) :: rc2       !< squared cut-off [D1^2]
     real(dp), intent(in) :: shift4    !< force shift r_c^-4 (0: plain truncation)
     logical, intent(in) :: check, with_r3
-    integer, intent(in) :: start(n + 1), nbr(:)
+    integer, intent(in) :: start(n + 1)
+    integer, intent(in), contiguous :: nbr(:)
     real(dp), intent(inout) :: fx(n), fy(n), s3(n)
     real(dp), intent(out) :: r2min    !< smallest squared distance among listed pairs
     type(lj_law_t), intent(in), optional :: law   !< Lennard-Jones instead of the dipole law
-    integer, intent(in) :: own(:)     !< the row i of each listed pair (nlist_t own)
+    integer, intent(in), contiguous :: own(:)   !< the row i of each listed pair (nlist_t own)
     call threaded_pass(mode_list, kernel_of(law), law_of(law), n, x, y, mu, wsin, k_pair, &
          0.0_dp, rc2, shift4, check, with_r3, start, nbr, fx, fy, s3, r2min, own)
   end subroutine pair_forces_list
@@ -339,16 +340,15 @@ contains
     type(lj_law_t), intent(in) :: l
     real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair, rc2, shift4
     logical, intent(in) :: check, with_r3
-    integer, intent(in) :: start(n + 1), nbr(:), own(:)
+    integer, intent(in) :: start(n + 1), nbr(*), own(*)   ! contiguous (stride-1 index loads)
     real(dp), intent(inout) :: fx(n), fy(n), s3(n), sx(*), sy(*), ss(*)
     real(dp), intent(inout) :: r2low
     integer, parameter :: chunk = 256
     integer :: i, j, m, k, k0, nk, k_hi
-    logical :: r3
-    real(dp) :: low, rk2, r2, s5, r3p, keep
-    real(dp) :: dxs(chunk), dys(chunk), r2s(chunk), cs(chunk), t3i(chunk), t3j(chunk)
+    real(dp) :: low, rk2, r2, s5, r3p, keep, keep3
+    real(dp) :: dxs(chunk), dys(chunk), r2s(chunk), cs(chunk), t3i(chunk)
     low = r2low
-    r3 = with_r3 .and. kernel == kernel_dipole
+    keep3 = merge(1.0_dp, 0.0_dp, with_r3)
     rk2 = huge(1.0_dp)
     if (check) rk2 = rc2
     k_hi = start(i_hi + 1) - 1
@@ -365,10 +365,8 @@ contains
           low = min(low, r2)
           keep = merge(1.0_dp, 0.0_dp, r2 < rk2)
           call dipole_kernel(r2, shift4, s5, r3p)
-          cs(m) = keep*k_pair*mu(i)*mu(j)*s5
-          r3p = keep*r3p
-          t3i(m) = wsin(j)*r3p    ! onto s3(i)
-          t3j(m) = wsin(i)*r3p    ! onto s3(j)
+          cs(m) = keep*s5        ! times k mu_i mu_j in chunk_sums (no gathers of mu, wsin here)
+          t3i(m) = keep*keep3*r3p   ! 0 without the friction sums (s3 then gets + 0)
         end do
       else
         do m = 1, nk
@@ -382,8 +380,8 @@ contains
         end do
         call lj_chunk(l, nk, r2s, cs)
       end if
-      call chunk_sums(nk, own(k0:k0 + nk - 1), nbr(k0:k0 + nk - 1), hi_direct, r3, cs, dxs, &
-           dys, t3i, t3j, fx, fy, s3, sx, sy, ss)
+      call chunk_sums(nk, own(k0:k0 + nk - 1), nbr(k0:k0 + nk - 1), hi_direct, &
+           kernel == kernel_dipole, cs, dxs, dys, t3i, fx, fy, s3, sx, sy, ss, mu, wsin, k_pair)
     end do
     r2low = low
   end subroutine rows_pairs
@@ -391,19 +389,22 @@ contains
   !> The sums of one chunk of pairs (i = own(m), j = nbr(m)) with force factors cs and
   !> separations dxs, dys: the action on i summed in registers while its row lasts (pairs
   !> come in row order: no store-to-load chain through fx(i) from one pair to the next), the
-  !> reaction on j directly (j <= hi_direct) or to the spill arrays. With r3 also
-  !> s3(i) += t3i, s3(j) += t3j (a separate loop without them otherwise).
-  subroutine chunk_sums(nk, own, nbr, hi_direct, r3, cs, dxs, dys, t3i, t3j, fx, fy, s3, &
-       sx, sy, ss)
+  !> reaction on j directly (j <= hi_direct) or to the spill arrays. Dipole (scaled): the force
+  !> factor is k mu_i mu_j cs, and s3(i) += wsin_j r3s, s3(j) += wsin_i r3s (mu_i and wsin_i
+  !> loaded once per row; r3s = 0 without the friction sums). Otherwise (Lennard-Jones) the factor is cs itself.
+  subroutine chunk_sums(nk, own, nbr, hi_direct, scaled, cs, dxs, dys, r3s, fx, fy, s3, &
+       sx, sy, ss, mu, wsin, k_pair)
     integer, intent(in) :: nk, own(nk), nbr(nk), hi_direct
-    logical, intent(in) :: r3
-    real(dp), intent(in) :: cs(nk), dxs(nk), dys(nk), t3i(nk), t3j(nk)
+    logical, intent(in) :: scaled
+    real(dp), intent(in) :: cs(nk), dxs(nk), dys(nk), r3s(nk), mu(*), wsin(*), k_pair
     real(dp), intent(inout) :: fx(*), fy(*), s3(*), sx(*), sy(*), ss(*)
     integer :: m, i, j, ic
-    real(dp) :: gx, gy, ax, ay, a3
+    real(dp) :: gx, gy, ax, ay, a3, c, ci, wi
     ic = own(1)
     ax = 0; ay = 0; a3 = 0
-    if (r3) then
+    if (scaled) then
+      ci = k_pair*mu(ic)
+      wi = wsin(ic)
       do m = 1, nk
         i = own(m)
         j = nbr(m)
@@ -412,21 +413,24 @@ contains
           fy(ic) = fy(ic) + ay
           s3(ic) = s3(ic) + a3
           ic = i
+          ci = k_pair*mu(i)
+          wi = wsin(i)
           ax = 0; ay = 0; a3 = 0
         end if
-        gx = cs(m)*dxs(m)
-        gy = cs(m)*dys(m)
+        c = ci*mu(j)*cs(m)
+        gx = c*dxs(m)
+        gy = c*dys(m)
         ax = ax + gx
         ay = ay + gy
-        a3 = a3 + t3i(m)
+        a3 = a3 + wsin(j)*r3s(m)
         if (j <= hi_direct) then
           fx(j) = fx(j) - gx
           fy(j) = fy(j) - gy
-          s3(j) = s3(j) + t3j(m)
+          s3(j) = s3(j) + wi*r3s(m)
         else
           sx(j) = sx(j) - gx
           sy(j) = sy(j) - gy
-          ss(j) = ss(j) + t3j(m)
+          ss(j) = ss(j) + wi*r3s(m)
         end if
       end do
       s3(ic) = s3(ic) + a3
@@ -472,10 +476,10 @@ contains
     type(lj_law_t), intent(in) :: l
     real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair, r2_min, rc2, shift4
     logical, intent(in) :: check, with_r3
-    integer, intent(in) :: start(:), nbr(:)
+    integer, intent(in), contiguous :: start(:), nbr(:)
     real(dp), intent(inout) :: fx(n), fy(n), s3(n)
     real(dp), intent(out) :: r2low
-    integer, intent(in), optional :: own(:)   !< row of each listed pair (lists only)
+    integer, intent(in), optional, contiguous :: own(:)   !< row of each listed pair (lists only)
     real(dp) :: low(64)
     integer :: nt, t, lo, hi, i, u
     integer :: bound(0:64)
