@@ -49,16 +49,20 @@ contains
     real(dp), intent(in) :: h
     type(state_t), intent(inout) :: s
     integer :: i
+    real(dp) :: rh, c
+    rh = 1.0_dp/h                    ! one division per particle (c), none per component
     select case (method)
     case (int_stormer_verlet)
       do i = lo, hi
-        s%vx(i) = (s%x(i) - s%xp(i))/h + 0.5_dp*h*s%fx(i)/s%mass(i)
-        s%vy(i) = (s%y(i) - s%yp(i))/h + 0.5_dp*h*s%fy(i)/s%mass(i)
+        c = 0.5_dp*h/s%mass(i)
+        s%vx(i) = (s%x(i) - s%xp(i))*rh + c*s%fx(i)
+        s%vy(i) = (s%y(i) - s%yp(i))*rh + c*s%fy(i)
       end do
     case (int_velocity_verlet)
       do i = lo, hi
-        s%vx(i) = s%xp(i) + 0.5_dp*h*s%fx(i)/s%mass(i)   ! xp, yp hold v_{n-1/2} here
-        s%vy(i) = s%yp(i) + 0.5_dp*h*s%fy(i)/s%mass(i)
+        c = 0.5_dp*h/s%mass(i)
+        s%vx(i) = s%xp(i) + c*s%fx(i)   ! xp, yp hold v_{n-1/2} here
+        s%vy(i) = s%yp(i) + c*s%fy(i)
       end do
     end select
   end subroutine estimate_range
@@ -103,13 +107,14 @@ contains
     real(dp), intent(in) :: h
     type(state_t), intent(inout) :: s
     integer :: i
-    real(dp) :: xn, yn, ax, ay
+    real(dp) :: xn, yn, ax, ay, c
     select case (method)
     case (int_stormer_verlet)
       if (s%has_previous) then
         do i = lo, hi
-          xn = 2*s%x(i) - s%xp(i) + h*h*s%fx(i)/s%mass(i)
-          yn = 2*s%y(i) - s%yp(i) + h*h*s%fy(i)/s%mass(i)
+          c = h*h/s%mass(i)
+          xn = 2*s%x(i) - s%xp(i) + c*s%fx(i)
+          yn = 2*s%y(i) - s%yp(i) + c*s%fy(i)
           s%xp(i) = s%x(i); s%yp(i) = s%y(i)
           s%x(i) = xn; s%y(i) = yn
         end do

@@ -24,12 +24,28 @@ contains
   !> is one vectorised array expression.
   pure subroutine push_block(law, k, m, l, along, length, f)
     integer, intent(in) :: law, m
-    real(dp), intent(in) :: k, l(:, :), along(:, :), length(:)
-    real(dp), intent(out) :: f(:, :)
-    integer :: w
+    real(dp), intent(in), contiguous :: l(:, :), along(:, :)
+    real(dp), intent(in) :: k, length(:)
+    real(dp), intent(out), contiguous :: f(:, :)
+    integer :: w, i
+    real(dp) :: q, r1, r2
     select case (law)
     case (wall_experimental)
-      f(1:m, :) = k/(l(1:m, :)**3*sqrt(l(1:m, :)))
+      ! k w^-3.5 = k r^3 sqrt(r), r = 1/w; facing walls (1, 2), (3, 4) share one division:
+      ! 1/w1 = w2/(w1 w2), 1/w2 = w1/(w1 w2)
+      do w = 1, size(l, 2) - 1, 2
+        do i = 1, m
+          q = 1.0_dp/(l(i, w)*l(i, w + 1))
+          r1 = l(i, w + 1)*q
+          r2 = l(i, w)*q
+          f(i, w) = k*(r1*r1*r1)*sqrt(r1)
+          f(i, w + 1) = k*(r2*r2*r2)*sqrt(r2)
+        end do
+      end do
+      if (mod(size(l, 2), 2) == 1) then
+        w = size(l, 2)
+        f(1:m, w) = k/(l(1:m, w)**3*sqrt(l(1:m, w)))
+      end if
     case (wall_infinite)
       f(1:m, :) = k/l(1:m, :)**3
     case (wall_slab)
