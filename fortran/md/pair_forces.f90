@@ -428,7 +428,7 @@ contains
     real(dp), intent(inout) :: r2low
     integer, parameter :: chunk = 256
     integer :: i, j, m, k, k0, nk, k_hi
-    real(dp) :: low, rk2, r2, s5, r3p, keep, keep3
+    real(dp) :: low, rk2, s5, r3p, keep, keep3
     real(dp) :: dxs(chunk), dys(chunk), r2s(chunk), cs(chunk), t3i(chunk)
     low = r2low
     keep3 = merge(1.0_dp, 0.0_dp, with_r3)
@@ -437,30 +437,23 @@ contains
     k_hi = start(i_hi + 1) - 1
     do k0 = start(i_lo), k_hi, chunk
       nk = min(chunk, k_hi - k0 + 1)
+      do m = 1, nk                  ! distances (gathers), shared by the laws
+        k = k0 + m - 1
+        i = own(k)
+        j = nbr(k)
+        dxs(m) = x(i) - x(j)
+        dys(m) = y(i) - y(j)
+        r2s(m) = dxs(m)*dxs(m) + dys(m)*dys(m)
+        low = min(low, r2s(m))
+      end do
       if (kernel == kernel_dipole) then
         do m = 1, nk
-          k = k0 + m - 1
-          i = own(k)
-          j = nbr(k)
-          dxs(m) = x(i) - x(j)
-          dys(m) = y(i) - y(j)
-          r2 = dxs(m)*dxs(m) + dys(m)*dys(m)
-          low = min(low, r2)
-          keep = merge(1.0_dp, 0.0_dp, r2 < rk2)
-          call dipole_kernel(r2, shift4, s5, r3p)
+          keep = merge(1.0_dp, 0.0_dp, r2s(m) < rk2)
+          call dipole_kernel(r2s(m), shift4, s5, r3p)
           cs(m) = keep*s5        ! times k mu_i mu_j in chunk_sums (no gathers of mu, wsin here)
           t3i(m) = keep*keep3*r3p   ! 0 without the friction sums (s3 then gets + 0)
         end do
       else
-        do m = 1, nk
-          k = k0 + m - 1
-          i = own(k)
-          j = nbr(k)
-          dxs(m) = x(i) - x(j)
-          dys(m) = y(i) - y(j)
-          r2s(m) = dxs(m)*dxs(m) + dys(m)*dys(m)
-          low = min(low, r2s(m))
-        end do
         call lj_chunk(l, nk, r2s, cs)
       end if
       call chunk_sums(nk, own(k0:k0 + nk - 1), nbr(k0:k0 + nk - 1), hi_direct, &
