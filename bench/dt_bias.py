@@ -9,6 +9,10 @@ bench/RESULTS.md section 4), with the 64-seed machinery of ``pyorch bench seeds`
 ``--reuse``: completed (setting, seed) rows of an earlier study are kept (the 64 references,
 the round-off probe and the dt = 2e-3 row of section 4 are then not run again).
 Writes bench/results/dt_bias_rows.csv and dt_bias.csv; prints the bias table.
+
+``--tail-every K`` runs the settings with the frozen far field refreshed every K steps (the
+scene's &integration tail_every; 100 by default) and writes dt_bias_tail<K>*.csv. The labels do
+not name tail_every: give ``--reuse`` a table without rows of these labels (the references only).
 """
 from __future__ import annotations
 
@@ -35,14 +39,23 @@ def main() -> int:
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--reuse", type=Path, default=None)
     ap.add_argument("--dt", type=float, nargs="+", default=list(DTS))
+    ap.add_argument("--tail-every", type=int, default=None)
     ap.add_argument("--out", type=Path, default=Path("/tmp/dt_bias"))
     args = ap.parse_args()
     reuse = pd.read_csv(args.reuse) if args.reuse else None
-    rows, table = trade_study(common.REPO / "runs" / "bench_compression.nml",
-                              settings(tuple(args.dt)), range(1, args.seeds + 1), args.out,
-                              workers=args.workers, reuse=reuse, energy_probe_t=0.0)
-    common.save_table(rows, "dt_bias_rows.csv")
-    common.save_table(table, "dt_bias.csv")
+    scene = common.REPO / "runs" / "bench_compression.nml"
+    tag = ""
+    if args.tail_every is not None:
+        from pyorch.scene import Scene
+
+        tag = f"_tail{args.tail_every}"
+        args.out.mkdir(parents=True, exist_ok=True)
+        scene = Scene.read(scene).with_overrides({"integration.tail_every": args.tail_every}) \
+            .write(args.out / f"bench_compression{tag}.nml")
+    rows, table = trade_study(scene, settings(tuple(args.dt)), range(1, args.seeds + 1),
+                              args.out, workers=args.workers, reuse=reuse, energy_probe_t=0.0)
+    common.save_table(rows, f"dt_bias{tag}_rows.csv")
+    common.save_table(table, f"dt_bias{tag}.csv")
     print(bias_summary_text(table))
     return 0
 
