@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import json
 import re
+import resource
 import statistics
 import subprocess
 import tempfile
@@ -51,14 +52,20 @@ def patched(scene: Path, over: dict, out: Path) -> Path:
     return out
 
 
-def one(exe: str, scene: Path, out: Path) -> float:
-    """Wall time per step [s] of one run (run.json)."""
+def one(exe: str, scene: Path, out: Path) -> tuple[float, float]:
+    """Wall time per step [s] of one run (run.json) and the CPU time per step of the process
+    (user + system, getrusage of the child; on a shared machine this leaves out the time
+    other jobs hold the core, which the wall time includes; set-up included in both)."""
+    r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     p = subprocess.run([exe, str(scene), "--out", str(out), "--quiet"], capture_output=True,
                        text=True, env={"OMP_NUM_THREADS": "1", "PATH": "/usr/bin:/bin"})
+    r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
     if p.returncode != 0:
         raise RuntimeError(f"{exe}: exit {p.returncode}: {p.stderr.strip()}")
     meta = json.loads((out / "run.json").read_text())
-    return float(meta["wall_time_s"]) / int(meta["steps_done"])
+    steps = int(meta["steps_done"])
+    cpu = (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)
+    return float(meta["wall_time_s"]) / steps, cpu / steps
 
 
 def instructions(exe: str, scene: Path, out: Path) -> int:
@@ -105,15 +112,20 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         for label, (base, over) in SCENES.items():
             path = patched(args.scene, over, Path(tmp) / f"{base}.nml")
-            ta, tb = [], []
+            ta, tb, ca, cb = [], [], [], []
             for k in range(args.repeat):
-                ta.append(one(args.a, path, Path(tmp) / f"a{k}{len(rows)}"))
-                tb.append(one(args.b, path, Path(tmp) / f"b{k}{len(rows)}"))
+                for exe, t, c, tag in ((args.a, ta, ca, "a"), (args.b, tb, cb, "b")):
+                    w, u = one(exe, path, Path(tmp) / f"{tag}{k}{len(rows)}")
+                    t.append(w)
+                    c.append(u)
             ratios = [b / a for a, b in zip(ta, tb)]
             rows.append({"scene": label, "A_best_us_per_step": 1e6 * min(ta),
                          "B_best_us_per_step": 1e6 * min(tb),
                          "B_over_A_best": min(tb) / min(ta),
                          "B_over_A_median_pair": statistics.median(ratios),
+                         "A_best_cpu_us_per_step": 1e6 * min(ca),
+                         "B_best_cpu_us_per_step": 1e6 * min(cb),
+                         "B_over_A_cpu_best": min(cb) / min(ca),
                          "repeats": args.repeat})
     common.save_table(pd.DataFrame(rows), "ab_engines.csv")
 

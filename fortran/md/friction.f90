@@ -1,9 +1,10 @@
 !> Body forces other than magnetism: gravity, viscous drag (thesis eq. 4.4)
 !> and regularised Coulomb friction against the glass (eq. 4.5) whose normal
 !> force comes from the dipole torques (eqs. 2.15 / 3.2 / 4.11).
+!> Serial kernels over the arrays given (the engine runs them per block of particles,
+!> on the threads from par_min_loop particles).
 module friction
   use kinds, only: dp
-  use parallel, only: par_min_loop
   implicit none
   private
 
@@ -17,11 +18,9 @@ contains
     real(dp), intent(in) :: mass(n), big_g
     real(dp), intent(inout) :: fy(n)
     integer :: i
-    !$omp parallel do if (n >= par_min_loop) schedule(static)
     do i = 1, n
       fy(i) = fy(i) - big_g*mass(i)
     end do
-    !$omp end parallel do
   end subroutine gravity_force
 
   !> Viscous drag -gamma m_i v_i (thesis eq. 4.4 with D_i = alpha gamma T/m1).
@@ -42,22 +41,17 @@ contains
     real(dp), intent(in) :: nfac(n), s3(n), mu_s, mu_d, v_t, vx(n), vy(n)
     real(dp), intent(inout) :: fx(n), fy(n)
     integer :: i
-    real(dp) :: fn, ft, v, c
-    !$omp parallel do if (n >= par_min_loop) schedule(static) default(shared) private(i, fn, ft, v, c)
+    real(dp) :: fn, ft, v, c, hold
+    ! branch-free (the hold test as a 0/1 factor): the loop vectorises
     do i = 1, n
       fn = nfac(i)*s3(i)
       ft = sqrt(fx(i)**2 + fy(i)**2)
       v = sqrt(vx(i)**2 + vy(i)**2)
-      if (ft <= mu_s*fn .and. v < v_t) then
-        fx(i) = 0
-        fy(i) = 0
-      else
-        c = mu_d*fn/(v + v_t)
-        fx(i) = fx(i) - c*vx(i)
-        fy(i) = fy(i) - c*vy(i)
-      end if
+      hold = merge(0.0_dp, 1.0_dp, ft <= mu_s*fn .and. v < v_t)
+      c = mu_d*fn/(v + v_t)
+      fx(i) = hold*(fx(i) - c*vx(i))
+      fy(i) = hold*(fy(i) - c*vy(i))
     end do
-    !$omp end parallel do
   end subroutine dry_friction
 
 end module friction

@@ -14,7 +14,7 @@
 !> which makes the Verlet schemes first order in v for those forces only.
 module integrators
   use kinds, only: dp
-  use parallel, only: par_min_loop
+  use parallel, only: par_min_loop, my_share
   use state, only: state_t
   use model, only: int_stormer_verlet, int_velocity_verlet, int_euler, int_semi_euler
   implicit none
@@ -24,30 +24,48 @@ module integrators
 
 contains
 
-  !> Before the forces: fx, fy still hold f_{n-1}.
+  !> Before the forces: fx, fy still hold f_{n-1}. Below par_min_loop particles the loop
+  !> runs without an OpenMP region (an inactive region still costs ~0.3 us: several per step).
   subroutine estimate_velocity(method, h, s)
     integer, intent(in) :: method
     real(dp), intent(in) :: h
     type(state_t), intent(inout) :: s
-    integer :: i
+    integer :: t, nt
     if (.not. s%has_previous) return       ! v_0 is in vx, vy
+    if (method /= int_stormer_verlet .and. method /= int_velocity_verlet) return
+    if (s%n < par_min_loop) then
+      call estimate_range(method, h, s, 1, s%n)
+      return
+    end if
+    !$omp parallel default(shared) private(t, nt)
+    call my_share(s%n, t, nt)
+    call estimate_range(method, h, s, 1 + ((t - 1)*s%n)/nt, (t*s%n)/nt)
+    !$omp end parallel
+  end subroutine estimate_velocity
+
+  !> Particles lo..hi of estimate_velocity.
+  subroutine estimate_range(method, h, s, lo, hi)
+    integer, intent(in) :: method, lo, hi
+    real(dp), intent(in) :: h
+    type(state_t), intent(inout) :: s
+    integer :: i
+    real(dp) :: rh, c
+    rh = 1.0_dp/h                    ! one division per particle (c), none per component
     select case (method)
     case (int_stormer_verlet)
-      !$omp parallel do if (s%n >= par_min_loop) schedule(static)
-      do i = 1, s%n
-        s%vx(i) = (s%x(i) - s%xp(i))/h + 0.5_dp*h*s%fx(i)/s%mass(i)
-        s%vy(i) = (s%y(i) - s%yp(i))/h + 0.5_dp*h*s%fy(i)/s%mass(i)
+      do i = lo, hi
+        c = 0.5_dp*h/s%mass(i)
+        s%vx(i) = (s%x(i) - s%xp(i))*rh + c*s%fx(i)
+        s%vy(i) = (s%y(i) - s%yp(i))*rh + c*s%fy(i)
       end do
-      !$omp end parallel do
     case (int_velocity_verlet)
-      !$omp parallel do if (s%n >= par_min_loop) schedule(static)
-      do i = 1, s%n
-        s%vx(i) = s%xp(i) + 0.5_dp*h*s%fx(i)/s%mass(i)   ! xp, yp hold v_{n-1/2} here
-        s%vy(i) = s%yp(i) + 0.5_dp*h*s%fy(i)/s%mass(i)
+      do i = lo, hi
+        c = 0.5_dp*h/s%mass(i)
+        s%vx(i) = s%xp(i) + c*s%fx(i)   ! xp, yp hold v_{n-1/2} here
+        s%vy(i) = s%yp(i) + c*s%fy(i)
       end do
-      !$omp end parallel do
     end select
-  end subroutine estimate_velocity
+  end subroutine estimate_range
 
   !> After the forces f_n: v_n for output.
   subroutine finish_velocity(method, h, s)
@@ -65,34 +83,50 @@ contains
     end select
   end subroutine finish_velocity
 
-  !> x_n -> x_{n+1} using f_n.
+  !> x_n -> x_{n+1} using f_n (serial below par_min_loop particles, as estimate_velocity).
   subroutine advance(method, h, s)
     integer, intent(in) :: method
     real(dp), intent(in) :: h
     type(state_t), intent(inout) :: s
+    integer :: t, nt
+    if (s%n < par_min_loop .or. .not. (method == int_velocity_verlet .or. &
+         (method == int_stormer_verlet .and. s%has_previous))) then
+      call advance_range(method, h, s, 1, s%n)
+    else
+      !$omp parallel default(shared) private(t, nt)
+      call my_share(s%n, t, nt)
+      call advance_range(method, h, s, 1 + ((t - 1)*s%n)/nt, (t*s%n)/nt)
+      !$omp end parallel
+    end if
+    s%has_previous = .true.
+  end subroutine advance
+
+  !> Particles lo..hi of advance (has_previous is set by the caller afterwards).
+  subroutine advance_range(method, h, s, lo, hi)
+    integer, intent(in) :: method, lo, hi
+    real(dp), intent(in) :: h
+    type(state_t), intent(inout) :: s
     integer :: i
-    real(dp) :: xn, yn, ax, ay
+    real(dp) :: xn, yn, ax, ay, c
     select case (method)
     case (int_stormer_verlet)
       if (s%has_previous) then
-        !$omp parallel do if (s%n >= par_min_loop) schedule(static) private(i, xn, yn)
-        do i = 1, s%n
-          xn = 2*s%x(i) - s%xp(i) + h*h*s%fx(i)/s%mass(i)
-          yn = 2*s%y(i) - s%yp(i) + h*h*s%fy(i)/s%mass(i)
+        do i = lo, hi
+          c = h*h/s%mass(i)
+          xn = 2*s%x(i) - s%xp(i) + c*s%fx(i)
+          yn = 2*s%y(i) - s%yp(i) + c*s%fy(i)
           s%xp(i) = s%x(i); s%yp(i) = s%y(i)
           s%x(i) = xn; s%y(i) = yn
         end do
-        !$omp end parallel do
       else
-        do i = 1, s%n
+        do i = lo, hi
           s%xp(i) = s%x(i); s%yp(i) = s%y(i)
           s%x(i) = s%x(i) + h*s%vx(i) + 0.5_dp*h*h*s%fx(i)/s%mass(i)
           s%y(i) = s%y(i) + h*s%vy(i) + 0.5_dp*h*h*s%fy(i)/s%mass(i)
         end do
       end if
     case (int_velocity_verlet)
-      !$omp parallel do if (s%n >= par_min_loop) schedule(static) private(i, ax, ay)
-      do i = 1, s%n
+      do i = lo, hi
         ax = s%fx(i)/s%mass(i); ay = s%fy(i)/s%mass(i)
         if (s%has_previous) then
           s%xp(i) = s%xp(i) + h*ax
@@ -104,23 +138,21 @@ contains
         s%x(i) = s%x(i) + h*s%xp(i)
         s%y(i) = s%y(i) + h*s%yp(i)
       end do
-      !$omp end parallel do
     case (int_euler)
-      do i = 1, s%n
+      do i = lo, hi
         s%x(i) = s%x(i) + h*s%vx(i)
         s%y(i) = s%y(i) + h*s%vy(i)
         s%vx(i) = s%vx(i) + h*s%fx(i)/s%mass(i)
         s%vy(i) = s%vy(i) + h*s%fy(i)/s%mass(i)
       end do
     case (int_semi_euler)
-      do i = 1, s%n
+      do i = lo, hi
         s%vx(i) = s%vx(i) + h*s%fx(i)/s%mass(i)
         s%vy(i) = s%vy(i) + h*s%fy(i)/s%mass(i)
         s%x(i) = s%x(i) + h*s%vx(i)
         s%y(i) = s%y(i) + h*s%vy(i)
       end do
     end select
-    s%has_previous = .true.
-  end subroutine advance
+  end subroutine advance_range
 
 end module integrators

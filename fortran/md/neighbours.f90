@@ -78,11 +78,17 @@ contains
     end if
     lim2 = (0.5_dp*nl%skin)**2
     d2max = 0
-    !$omp parallel do if (n >= par_min_loop) schedule(static) reduction(max: d2max)
-    do i = 1, n
-      d2max = max(d2max, (x(i) - nl%xref(i))**2 + (y(i) - nl%yref(i))**2)
-    end do
-    !$omp end parallel do
+    if (n < par_min_loop) then     ! no OpenMP region at all (an inactive one costs ~0.3 us)
+      do i = 1, n
+        d2max = max(d2max, (x(i) - nl%xref(i))**2 + (y(i) - nl%yref(i))**2)
+      end do
+    else
+      !$omp parallel do schedule(static) reduction(max: d2max)
+      do i = 1, n
+        d2max = max(d2max, (x(i) - nl%xref(i))**2 + (y(i) - nl%yref(i))**2)
+      end do
+      !$omp end parallel do
+    end if
     due = d2max > lim2
   end function nlist_due
 

@@ -18,6 +18,9 @@ module pair_forces
   public :: lj_law_t, lj_law, lj_kernel, lj_energy
 
   integer, parameter :: mode_all = 1, mode_list = 2
+  !> Mean listed pairs per row from which dipole lists go row by row (rows_list) instead of
+  !> as one flat pair sequence (rows_pairs)
+  real(dp), parameter :: long_row_pairs = 8
   integer, parameter :: kernel_dipole = 1, kernel_lj6 = 2, kernel_lj = 3
 
   !> Seed 000's steric law between r_m and the cut-off R: U = 4 U0 ((2/r)^2p - (2/r)^p),
@@ -189,8 +192,8 @@ contains
   end subroutine pair_forces_all
 
   !> Half neighbour list (pairs i < j stored once, CSR: the neighbours of i
-  !> are nbr(start(i) : start(i+1)-1)). Pairs at r >= r_c are skipped when
-  !> check is set (the thesis variant r_c = r_v uses every listed pair).
+  !> are nbr(start(i) : start(i+1)-1), own(k) the row of pair k). Pairs at r >= r_c
+  !> are skipped when check is set (the thesis variant r_c = r_v uses every listed pair).
   subroutine pair_forces_list(n, x, y, mu, wsin, k_pair, rc2, shift4, check, with_r3, &
        start, nbr, fx, fy, s3, r2min, law, own)
     integer, intent(in) :: n
@@ -198,11 +201,12 @@ contains
     real(dp), intent(in) :: rc2       !< squared cut-off [D1^2]
     real(dp), intent(in) :: shift4    !< force shift r_c^-4 (0: plain truncation)
     logical, intent(in) :: check, with_r3
-    integer, intent(in) :: start(n + 1), nbr(:)
+    integer, intent(in) :: start(n + 1)
+    integer, intent(in), contiguous :: nbr(:)
     real(dp), intent(inout) :: fx(n), fy(n), s3(n)
     real(dp), intent(out) :: r2min    !< smallest squared distance among listed pairs
     type(lj_law_t), intent(in), optional :: law   !< Lennard-Jones instead of the dipole law
-    integer, intent(in), optional :: own(:)      !< with law: the row of each pair (nlist own)
+    integer, intent(in), contiguous :: own(:)   !< the row i of each listed pair (nlist_t own)
     call threaded_pass(mode_list, kernel_of(law), law_of(law), n, x, y, mu, wsin, k_pair, &
          0.0_dp, rc2, shift4, check, with_r3, start, nbr, fx, fy, s3, r2min, own)
   end subroutine pair_forces_list
@@ -326,15 +330,16 @@ contains
     r2low = low
   end subroutine row_segment
 
-  !> Rows i_lo..i_hi of a half neighbour list. Two passes per chunk: gather
-  !> and evaluate (vectorisable), then accumulate on i and scatter on j
+  !> Dipole rows i_lo..i_hi of a half neighbour list, row by row (for long rows: x_i, y_i,
+  !> mu_i, wsin_i are scalars of the row, not gathered as in rows_pairs). Two passes per
+  !> chunk: gather and evaluate (vectorisable), then accumulate on i and scatter on j
   !> (reactions on j > hi_direct to the spill arrays, as in rows_all).
-  subroutine rows_list(i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, &
-       shift4, check, with_r3, start, nbr, fx, fy, s3, sx, sy, ss, r2low)
+  subroutine rows_list(i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, shift4, check, &
+       with_r3, start, nbr, fx, fy, s3, sx, sy, ss, r2low)
     integer, intent(in) :: i_lo, i_hi, hi_direct, n
     real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair, rc2, shift4
     logical, intent(in) :: check, with_r3
-    integer, intent(in) :: start(n + 1), nbr(:)
+    integer, intent(in) :: start(n + 1), nbr(*)
     real(dp), intent(inout) :: fx(n), fy(n), s3(n)
     real(dp), intent(inout) :: sx(*), sy(*), ss(*)
     real(dp), intent(inout) :: r2low   !< running minimum of r^2
@@ -405,42 +410,110 @@ contains
     r2low = low
   end subroutine rows_list
 
-  !> Lennard-Jones over the pairs of rows i_lo..i_hi of a half list, taken as one flat
-  !> sequence (own(k) = the row of pair k): chunks of 256 pairs whatever the row lengths
-  !> (at the seed's densities a row holds ~5 pairs, too few to vectorise row by row).
-  !> Reactions on j > hi_direct go to the spill arrays sx, sy (see threaded_pass).
-  subroutine rows_pairs(l, i_lo, i_hi, hi_direct, n, x, y, start, nbr, own, fx, fy, sx, sy, &
-       r2low)
+  !> Rows i_lo..i_hi of a half list taken as one flat sequence of pairs (own(k) = the row i of
+  !> pair k): chunks of 256 pairs whatever the row lengths (a row holds ~5 pairs at the
+  !> production cut-offs, too few to vectorise row by row). Per chunk, one vectorised loop of
+  !> the law (distances gathered, the kernel branch-free), then chunk_sums. The law is chosen
+  !> once per chunk, outside the loops. Dipole: pairs at r >= r_c are skipped when check is
+  !> set, and the r^-3 friction sums (with_r3) go along. Reactions on j > hi_direct go to the
+  !> spill arrays sx, sy, ss (see threaded_pass).
+  subroutine rows_pairs(kernel, l, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, &
+       shift4, check, with_r3, start, nbr, own, fx, fy, s3, sx, sy, ss, r2low)
+    integer, intent(in) :: kernel, i_lo, i_hi, hi_direct, n
     type(lj_law_t), intent(in) :: l
-    integer, intent(in) :: i_lo, i_hi, hi_direct, n
-    real(dp), intent(in) :: x(n), y(n)
-    integer, intent(in) :: start(n + 1), nbr(:), own(:)
-    real(dp), intent(inout) :: fx(n), fy(n), sx(*), sy(*)
+    real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair, rc2, shift4
+    logical, intent(in) :: check, with_r3
+    integer, intent(in) :: start(n + 1), nbr(*), own(*)   ! contiguous (stride-1 index loads)
+    real(dp), intent(inout) :: fx(n), fy(n), s3(n), sx(*), sy(*), ss(*)
     real(dp), intent(inout) :: r2low
     integer, parameter :: chunk = 256
-    integer :: i, j, m, k0, nk, k_hi, ic
-    real(dp) :: low, gx, gy, ax, ay
-    real(dp) :: dxs(chunk), dys(chunk), r2s(chunk), cs(chunk)
+    integer :: i, j, m, k, k0, nk, k_hi
+    real(dp) :: low, rk2, s5, r3p, keep, keep3
+    real(dp) :: dxs(chunk), dys(chunk), r2s(chunk), cs(chunk), t3i(chunk)
     low = r2low
+    keep3 = merge(1.0_dp, 0.0_dp, with_r3)
+    rk2 = huge(1.0_dp)
+    if (check) rk2 = rc2
     k_hi = start(i_hi + 1) - 1
     do k0 = start(i_lo), k_hi, chunk
       nk = min(chunk, k_hi - k0 + 1)
-      do m = 1, nk
-        i = own(k0 + m - 1)
-        j = nbr(k0 + m - 1)
+      do m = 1, nk                  ! distances (gathers), shared by the laws
+        k = k0 + m - 1
+        i = own(k)
+        j = nbr(k)
         dxs(m) = x(i) - x(j)
         dys(m) = y(i) - y(j)
         r2s(m) = dxs(m)*dxs(m) + dys(m)*dys(m)
         low = min(low, r2s(m))
       end do
-      call lj_chunk(l, nk, r2s, cs)
-      ! the action on i summed in registers while the row lasts (pairs are in row order):
-      ! no store-to-load chain through fx(i) from one pair to the next
-      ic = own(k0)
-      ax = 0; ay = 0
+      if (kernel == kernel_dipole) then
+        do m = 1, nk
+          keep = merge(1.0_dp, 0.0_dp, r2s(m) < rk2)
+          call dipole_kernel(r2s(m), shift4, s5, r3p)
+          cs(m) = keep*s5        ! times k mu_i mu_j in chunk_sums (no gathers of mu, wsin here)
+          t3i(m) = keep*keep3*r3p   ! 0 without the friction sums (s3 then gets + 0)
+        end do
+      else
+        call lj_chunk(l, nk, r2s, cs)
+      end if
+      call chunk_sums(nk, own(k0:k0 + nk - 1), nbr(k0:k0 + nk - 1), hi_direct, &
+           kernel == kernel_dipole, cs, dxs, dys, t3i, fx, fy, s3, sx, sy, ss, mu, wsin, k_pair)
+    end do
+    r2low = low
+  end subroutine rows_pairs
+
+  !> The sums of one chunk of pairs (i = own(m), j = nbr(m)) with force factors cs and
+  !> separations dxs, dys: the action on i summed in registers while its row lasts (pairs
+  !> come in row order: no store-to-load chain through fx(i) from one pair to the next), the
+  !> reaction on j directly (j <= hi_direct) or to the spill arrays. Dipole (scaled): the force
+  !> factor is k mu_i mu_j cs, and s3(i) += wsin_j r3s, s3(j) += wsin_i r3s (mu_i and wsin_i
+  !> loaded once per row; r3s = 0 without the friction sums). Otherwise (Lennard-Jones) the factor is cs itself.
+  subroutine chunk_sums(nk, own, nbr, hi_direct, scaled, cs, dxs, dys, r3s, fx, fy, s3, &
+       sx, sy, ss, mu, wsin, k_pair)
+    integer, intent(in) :: nk, own(nk), nbr(nk), hi_direct
+    logical, intent(in) :: scaled
+    real(dp), intent(in) :: cs(nk), dxs(nk), dys(nk), r3s(nk), mu(*), wsin(*), k_pair
+    real(dp), intent(inout) :: fx(*), fy(*), s3(*), sx(*), sy(*), ss(*)
+    integer :: m, i, j, ic
+    real(dp) :: gx, gy, ax, ay, a3, c, ci, wi
+    ic = own(1)
+    ax = 0; ay = 0; a3 = 0
+    if (scaled) then
+      ci = k_pair*mu(ic)
+      wi = wsin(ic)
       do m = 1, nk
-        i = own(k0 + m - 1)
-        j = nbr(k0 + m - 1)
+        i = own(m)
+        j = nbr(m)
+        if (i /= ic) then
+          fx(ic) = fx(ic) + ax
+          fy(ic) = fy(ic) + ay
+          s3(ic) = s3(ic) + a3
+          ic = i
+          ci = k_pair*mu(i)
+          wi = wsin(i)
+          ax = 0; ay = 0; a3 = 0
+        end if
+        c = ci*mu(j)*cs(m)
+        gx = c*dxs(m)
+        gy = c*dys(m)
+        ax = ax + gx
+        ay = ay + gy
+        a3 = a3 + wsin(j)*r3s(m)
+        if (j <= hi_direct) then
+          fx(j) = fx(j) - gx
+          fy(j) = fy(j) - gy
+          s3(j) = s3(j) + wi*r3s(m)
+        else
+          sx(j) = sx(j) - gx
+          sy(j) = sy(j) - gy
+          ss(j) = ss(j) + wi*r3s(m)
+        end if
+      end do
+      s3(ic) = s3(ic) + a3
+    else
+      do m = 1, nk
+        i = own(m)
+        j = nbr(m)
         if (i /= ic) then
           fx(ic) = fx(ic) + ax
           fy(ic) = fy(ic) + ay
@@ -459,11 +532,10 @@ contains
           sy(j) = sy(j) - gy
         end if
       end do
-      fx(ic) = fx(ic) + ax
-      fy(ic) = fy(ic) + ay
-    end do
-    r2low = low
-  end subroutine rows_pairs
+    end if
+    fx(ic) = fx(ic) + ax
+    fy(ic) = fy(ic) + ay
+  end subroutine chunk_sums
 
   !> Run the rows on the OpenMP threads, deterministically and without
   !> per-step buffers. Thread t takes a fixed block of rows lo_t..hi_t
@@ -480,14 +552,15 @@ contains
     type(lj_law_t), intent(in) :: l
     real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair, r2_min, rc2, shift4
     logical, intent(in) :: check, with_r3
-    integer, intent(in) :: start(:), nbr(:)
+    integer, intent(in), contiguous :: start(:), nbr(:)
     real(dp), intent(inout) :: fx(n), fy(n), s3(n)
     real(dp), intent(out) :: r2low
-    integer, intent(in), optional :: own(:)   !< row of each listed pair (Lennard-Jones lists)
+    integer, intent(in), optional, contiguous :: own(:)   !< row of each listed pair (lists only)
     real(dp) :: low(64)
     integer :: nt, t, lo, hi, i, u
     integer :: bound(0:64)
     real(dp) :: work, dummy(1, 3)
+    logical :: long_rows
     nt = 1
     ! threads only pay off with enough pairs per step (fork/join costs ~ microseconds)
     if (mode == mode_all) then
@@ -495,6 +568,10 @@ contains
     else
       work = real(start(n + 1) - 1, dp)
     end if
+    ! dipole lists: row by row when rows are long, the flat pair sequence when short (measured
+    ! on this machine, bench/RESULTS.md section 18: flat 1.24x faster at 3.8 pairs per row,
+    ! row by row 1.1x faster at 15 and more)
+    long_rows = work >= long_row_pairs*real(max(1, n), dp)
     !$ if (work >= 5.0e4_dp) nt = min(omp_get_max_threads(), 64)
     r2low = huge(1.0_dp)
     if (nt == 1) then
@@ -545,12 +622,12 @@ contains
       if (mode == mode_all) then
         call rows_all(kernel, l, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, r2_min, &
              with_r3, ax, ay, a3, bx, by, b3, lw)
-      else if (kernel == kernel_dipole) then
+      else if (kernel == kernel_dipole .and. long_rows) then
         call rows_list(i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, &
              shift4, check, with_r3, start, nbr, ax, ay, a3, bx, by, b3, lw)
       else
-        call rows_pairs(l, i_lo, i_hi, hi_direct, n, x, y, start, nbr, own, ax, ay, bx, by, &
-             lw)
+        call rows_pairs(kernel, l, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, &
+             shift4, check, with_r3, start, nbr, own, ax, ay, a3, bx, by, b3, lw)
       end if
     end subroutine rows
     !> Last row of the first k shares (0 for k = 0, n for k = nt).

@@ -9,11 +9,12 @@
 module walls
   use kinds, only: dp
   use model, only: wall_experimental, wall_infinite, wall_slab
-  use parallel, only: par_min_loop
   implicit none
   private
 
-  public :: wall_forces, wall_energy
+  public :: wall_block, wall_energy, wall_chunk
+
+  integer, parameter :: wall_chunk = 256   !< largest block of wall_block
 
 contains
 
@@ -23,12 +24,28 @@ contains
   !> is one vectorised array expression.
   pure subroutine push_block(law, k, m, l, along, length, f)
     integer, intent(in) :: law, m
-    real(dp), intent(in) :: k, l(:, :), along(:, :), length(:)
-    real(dp), intent(out) :: f(:, :)
-    integer :: w
+    real(dp), intent(in), contiguous :: l(:, :), along(:, :)
+    real(dp), intent(in) :: k, length(:)
+    real(dp), intent(out), contiguous :: f(:, :)
+    integer :: w, i
+    real(dp) :: q, r1, r2
     select case (law)
     case (wall_experimental)
-      f(1:m, :) = k/(l(1:m, :)**3*sqrt(l(1:m, :)))
+      ! k w^-3.5 = k r^3 sqrt(r), r = 1/w; facing walls (1, 2), (3, 4) share one division:
+      ! 1/w1 = w2/(w1 w2), 1/w2 = w1/(w1 w2)
+      do w = 1, size(l, 2) - 1, 2
+        do i = 1, m
+          q = 1.0_dp/(l(i, w)*l(i, w + 1))
+          r1 = l(i, w + 1)*q
+          r2 = l(i, w)*q
+          f(i, w) = k*(r1*r1*r1)*sqrt(r1)
+          f(i, w + 1) = k*(r2*r2*r2)*sqrt(r2)
+        end do
+      end do
+      if (mod(size(l, 2), 2) == 1) then
+        w = size(l, 2)
+        f(1:m, w) = k/(l(1:m, w)**3*sqrt(l(1:m, w)))
+      end if
     case (wall_infinite)
       f(1:m, :) = k/l(1:m, :)**3
     case (wall_slab)
@@ -47,67 +64,53 @@ contains
     g = (3*q*q + 2)/((3*q*q + 3)*sqrt(q*q + 1))
   end function slab_edge
 
-  !> Add wall forces to fx, fy; return the total force of the particles on
-  !> the piston (positive = pushing it up) and the first particle found
-  !> outside the cell (or with a non-finite coordinate), 0 if none.
-  !> Particles go by blocks of `chunk`: distances to the walls, the law
-  !> (push_block), then the sums.
-  subroutine wall_forces(n, x, y, mu, law, k, width, height, h, with_piston, &
-       fx, fy, f_piston, outside)
-    integer, intent(in) :: n
-    real(dp), intent(in) :: x(n), y(n), mu(n)
+  !> Add wall forces to fx, fy of a block of m <= wall_chunk particles; return the block's
+  !> force on the piston (positive = pushing it up) and the first particle of the block found
+  !> outside the cell (or with a non-finite coordinate), 0 if none. Distances to the walls,
+  !> the law (push_block), then the sums. Serial: the engine runs the blocks on the threads
+  !> and sums the blocks' piston forces in block order (the same bits for any thread count).
+  subroutine wall_block(m, x, y, mu, law, k, width, height, h, with_piston, fx, fy, &
+       f_piston, outside)
+    integer, intent(in) :: m
+    real(dp), intent(in) :: x(m), y(m), mu(m)
     integer, intent(in) :: law
     real(dp), intent(in) :: k, width, height   !< law prefactor, cell size [D1]
     real(dp), intent(in) :: h                  !< piston height [D1]
     logical, intent(in) :: with_piston
-    real(dp), intent(inout) :: fx(n), fy(n)
+    real(dp), intent(inout) :: fx(m), fy(m)
     real(dp), intent(out) :: f_piston
     integer, intent(out) :: outside
-    integer, parameter :: chunk = 256
-    integer :: i, i0, m, nw, first_bad
-    real(dp) :: top, l(chunk, 4), along(chunk, 4), f(chunk, 4), lengths(4)
-    real(dp) :: part((n + chunk - 1)/chunk)   !< push on the piston by each block
+    integer :: i, nw
+    real(dp) :: top, l(wall_chunk, 4), along(wall_chunk, 4), f(wall_chunk, 4), lengths(4)
     top = height
     if (with_piston) top = h
     nw = merge(4, 3, with_piston)   ! left, right, bottom (+ piston)
     lengths = [height, height, width, width]
-    first_bad = huge(1)
-    !$omp parallel do if (n >= par_min_loop) schedule(static) default(shared) &
-    !$omp private(i, i0, m, l, along, f) reduction(min: first_bad)
-    do i0 = 1, n, chunk
-      m = min(chunk, n - i0 + 1)
-      do i = 1, m
-        ! written so that NaN fails the test too; the forces of an outside particle
-        ! are garbage, but the engine stops on `outside` before using them
-        if (.not. (x(i0 + i - 1) > 0 .and. x(i0 + i - 1) < width .and. y(i0 + i - 1) > 0 &
-             .and. y(i0 + i - 1) < top)) first_bad = min(first_bad, i0 + i - 1)
-      end do
-      if (law == 0) then
-        part(1 + (i0 - 1)/chunk) = 0
-        cycle
-      end if
-      l(1:m, 1) = x(i0:i0 + m - 1)
-      l(1:m, 2) = width - x(i0:i0 + m - 1)
-      l(1:m, 3) = y(i0:i0 + m - 1)
-      l(1:m, 4) = h - y(i0:i0 + m - 1)
-      along(1:m, 1) = y(i0:i0 + m - 1)
-      along(1:m, 2) = y(i0:i0 + m - 1)
-      along(1:m, 3) = x(i0:i0 + m - 1)
-      along(1:m, 4) = x(i0:i0 + m - 1)
-      call push_block(law, k, m, l(:, 1:nw), along(:, 1:nw), lengths(1:nw), f(:, 1:nw))
-      if (.not. with_piston) f(1:m, 4) = 0
-      do i = 1, m
-        fx(i0 + i - 1) = fx(i0 + i - 1) + mu(i0 + i - 1)*(f(i, 1) - f(i, 2))
-        f(i, 4) = mu(i0 + i - 1)*f(i, 4)
-        fy(i0 + i - 1) = fy(i0 + i - 1) + mu(i0 + i - 1)*f(i, 3) - f(i, 4)
-      end do
-      part(1 + (i0 - 1)/chunk) = sum(f(1:m, 4))
-    end do
-    !$omp end parallel do
     outside = 0
-    if (first_bad /= huge(1)) outside = first_bad
-    f_piston = sum(part)   ! fixed blocks summed in order: the same bits for any thread count
-  end subroutine wall_forces
+    do i = m, 1, -1
+      ! written so that NaN fails the test too; the forces of an outside particle
+      ! are garbage, but the engine stops on `outside` before using them
+      if (.not. (x(i) > 0 .and. x(i) < width .and. y(i) > 0 .and. y(i) < top)) outside = i
+    end do
+    f_piston = 0
+    if (law == 0) return
+    l(1:m, 1) = x
+    l(1:m, 2) = width - x
+    l(1:m, 3) = y
+    l(1:m, 4) = h - y
+    along(1:m, 1) = y
+    along(1:m, 2) = y
+    along(1:m, 3) = x
+    along(1:m, 4) = x
+    call push_block(law, k, m, l(:, 1:nw), along(:, 1:nw), lengths(1:nw), f(:, 1:nw))
+    if (.not. with_piston) f(1:m, 4) = 0
+    do i = 1, m
+      fx(i) = fx(i) + mu(i)*(f(i, 1) - f(i, 2))
+      f(i, 4) = mu(i)*f(i, 4)
+      fy(i) = fy(i) + mu(i)*f(i, 3) - f(i, 4)
+    end do
+    f_piston = sum(f(1:m, 4))
+  end subroutine wall_block
 
   !> Wall potential energy [m1 g D1] for the laws that have one
   !> (experimental: k w^-2.5/2.5, infinite: k w^-2/2).
