@@ -454,3 +454,30 @@ def test_gns_identity_second_difference_is_dt2_force(tmp_path: Path) -> None:
     f = frames(out)
     acc = f["y"][2:] - 2 * f["y"][1:-1] + f["y"][:-2]
     assert np.allclose(acc, -0.2 * h * h, rtol=1e-6, atol=0)
+
+
+def test_resume_refuses_a_changed_field_table(tmp_path: Path) -> None:
+    """The table's CRC-64 is in the checkpoint: a table edited after the pause refuses the
+    resume (exit 4, naming the file), an unchanged one resumes to the uninterrupted bytes."""
+    table = tmp_path / "field.txt"
+    body = "2 2 1\n0 0 40 40\n0 1\n0.1 0\n0.1 0\n0.1 0\n0.1 0\n"
+    table.write_text(body)
+    over = {"field.type": "table", "field.file": str(table), "particles.velocities": "maxwell",
+            "integration.steps": 600, "output.frame_every": 100, "output.energy_every": 100,
+            "output.checkpoint_every": 200}
+    full = lj_run(tmp_path, "full", **over)
+    path = Scene.read(DEMO).with_overrides({**QUIET, **over}).write(tmp_path / "s.nml")
+    parts = []
+    for name in ("same", "edited"):
+        d = tmp_path / name
+        p = subprocess.run([str(engine_executable()), str(path), "--out", str(d), "--quiet",
+                            "--stop-at", "300"], capture_output=True, text=True)
+        assert p.returncode == 0, p.stderr
+        parts.append(d)
+    resume(parts[0], progress=False)
+    assert (parts[0] / "frames.dat").read_bytes() == (full / "frames.dat").read_bytes()
+    table.write_text(body.replace("0.1 0\n0.1 0\n0.1 0\n0.1 0\n", "0.2 0\n0.1 0\n0.1 0\n0.1 0\n"))
+    p = subprocess.run([str(engine_executable()), "--resume", str(parts[1]), "--quiet"],
+                       capture_output=True, text=True)
+    assert p.returncode == 4, p.stderr
+    assert "field table" in p.stderr and "changed" in p.stderr
