@@ -217,8 +217,10 @@ def _launch(cmd: list[str], out: Path, progress: bool, threads: int | None) -> N
                     bar = tqdm(total=total, unit="step", unit_scale=True, dynamic_ncols=True,
                                desc=out.name)
                     bar.update(step)  # a resumed run starts part-way
-                bar.set_postfix_str(f"t={float(parts[3]):.1f} {parts[4]} F={float(parts[5]):.3g}",
-                                    refresh=False)
+                # the method's two words (a phase and its number: the bed's piston force,
+                # lj_box's kinetic energy, dla's free disks) shown as the method gives them
+                value = f" {float(parts[5]):.4g}" if len(parts) > 5 else ""
+                bar.set_postfix_str(f"t={float(parts[3]):.1f} {parts[4]}{value}", refresh=False)
                 bar.update(step - bar.n)
         err = proc.stderr.read()
         code = proc.wait()
