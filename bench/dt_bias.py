@@ -27,9 +27,9 @@ from pyorch.bench import Setting, bias_summary_text, trade_study
 DTS = (2.0e-3, 4.0e-3, 8.0e-3)
 
 
-def settings(dts: tuple[float, ...] = DTS) -> list[Setting]:
-    """The production force path at each time step [T]."""
-    return [Setting.of(r_cut=4.13, tail="frozen", dt=h) for h in dts]
+def settings(dts: tuple[float, ...] = DTS, tail: str = "frozen") -> list[Setting]:
+    """The production force path at each time step [T], far field frozen or linear."""
+    return [Setting.of(r_cut=4.13, tail=tail, dt=h) for h in dts]
 
 
 def main() -> int:
@@ -40,19 +40,20 @@ def main() -> int:
     ap.add_argument("--reuse", type=Path, default=None)
     ap.add_argument("--dt", type=float, nargs="+", default=list(DTS))
     ap.add_argument("--tail-every", type=int, default=None)
+    ap.add_argument("--tail", choices=("frozen", "linear"), default="frozen")
     ap.add_argument("--out", type=Path, default=Path("/tmp/dt_bias"))
     args = ap.parse_args()
     reuse = pd.read_csv(args.reuse) if args.reuse else None
     scene = common.REPO / "runs" / "bench_compression.nml"
-    tag = ""
+    tag = "" if args.tail == "frozen" else "_linear"
     if args.tail_every is not None:
         from pyorch.scene import Scene
 
-        tag = f"_tail{args.tail_every}"
+        tag += f"_tail{args.tail_every}"
         args.out.mkdir(parents=True, exist_ok=True)
         scene = Scene.read(scene).with_overrides({"integration.tail_every": args.tail_every}) \
             .write(args.out / f"bench_compression{tag}.nml")
-    rows, table = trade_study(scene, settings(tuple(args.dt)), range(1, args.seeds + 1),
+    rows, table = trade_study(scene, settings(tuple(args.dt), args.tail), range(1, args.seeds + 1),
                               args.out, workers=args.workers, reuse=reuse, energy_probe_t=0.0)
     common.save_table(rows, f"dt_bias{tag}_rows.csv")
     common.save_table(table, f"dt_bias{tag}.csv")

@@ -81,7 +81,7 @@ class Setting:
             if d["truncation"] != "plain":
                 parts.append("sf")
             if d["tail"] != "none":
-                parts.append("tail")
+                parts.append({"frozen": "tail", "linear": "lintail"}[d["tail"]])
         parts += [f"dt{d['dt']:g}", {"stormer_verlet": "SV", "velocity_verlet": "VV",
                                      "euler": "Eu"}[d["integrator"]]]
         return "_".join(parts)

@@ -131,3 +131,53 @@ def test_threaded_mean_distance_has_the_same_bits(make_scene, tmp_path):
     db = (tmp_path / "t2" / "mean_distance.dat").read_bytes()
     assert a.meta["pairs_per_step"] < 5e4 and len(a.mean_distance()) == 21
     assert da == db
+
+
+
+
+def _far_field_error(door, make_scene, tail: str, every: int, switch: float) -> float:
+    """RMS |F - F_exact| / RMS |F_exact| half-way through the second refresh interval of a
+    cluster of weak magnets set in rigid rotation (0.1 rad/T): pair distances stay nearly
+    fixed and each particle's far field turns smoothly with the body. F_exact: a fresh far
+    field at the same positions (list + far = all pairs at a refresh)."""
+    ov = dict(BOX, **{"integration.neighbour": "verlet", "integration.r_cut": 3.0,
+                      "integration.tail": tail, "integration.tail_every": every,
+                      "integration.tail_switch": switch, "physics.dry_friction": "none",
+                      "physics.gravity": False, "material.remanence": 0.02,
+                      "physics.wall_law": "infinite", "integration.dt": 4e-3})
+    d = door(make_scene("demo", ov))
+    s = d.state()
+    x, y = 20.0 + 0.5 * (s["x"] - 20.0), 20.0 + 0.5 * (s["y"] - 20.0)   # clear of the walls
+    d.set(x, y, -0.1 * (y - 20.0), 0.1 * (x - 20.0))
+    d.advance(every + every // 2)
+    fx, fy = d.forces()
+    s = d.state()
+    d.set(s["x"], s["y"], s["vx"], s["vy"])
+    rx, ry = d.forces()
+    return float(np.sqrt(np.mean((fx - rx) ** 2 + (fy - ry) ** 2) / np.mean(rx ** 2 + ry ** 2)))
+
+
+def test_linear_far_field_is_second_order_in_the_refresh_interval(door, make_scene):
+    """With the smooth hand-over (tail_switch 1 D1) the frozen far field is stale by
+    O(interval) and the linearly extrapolated one by O(interval^2): halving the interval
+    halves one error and quarters the other. With the sharp split (tail_switch 0) the pairs
+    crossing r_c make jumps that no extrapolation follows: linear is then no better."""
+    ks = (80, 40, 20)
+    frozen = [_far_field_error(door, make_scene, "frozen", k, 1.0) for k in ks]
+    linear = [_far_field_error(door, make_scene, "linear", k, 1.0) for k in ks]
+    for a, b in zip(frozen, frozen[1:]):
+        assert 1.7 < a / b < 2.5, frozen
+    for a, b in zip(linear, linear[1:]):
+        assert 3.5 < a / b < 5.0, linear
+    sharp = _far_field_error(door, make_scene, "linear", ks[-1], 0.0)
+    assert sharp > 10 * linear[-1], (sharp, linear)
+
+
+def test_linear_far_field_with_switch_is_exact_at_a_refresh(door, make_scene):
+    """At a refresh the smooth hand-over splits every pair's force exactly: list + far = all."""
+    ov = {"integration.neighbour": "verlet", "integration.r_cut": 4.0, "integration.tail": "linear",
+          "integration.tail_every": 1, "integration.tail_switch": 1.5}
+    ref_x, ref_y, _ = forces_with(door, make_scene, "all_pairs")
+    fx, fy, _ = forces_with(door, make_scene, "verlet", ov)
+    scale = np.max(np.hypot(ref_x, ref_y))
+    assert np.max(np.hypot(fx - ref_x, fy - ref_y)) < 1e-12 * scale

@@ -47,6 +47,8 @@ BAD = [
     ({"integration.tail": "magic"}, r"&integration tail = 'magic'"),
     ({"integration.truncation": "smooth"}, r"&integration truncation = 'smooth'"),
     ({"integration.neighbour": "verlet", "integration.tail_every": 0}, r"&integration tail_every = 0"),
+    ({"integration.neighbour": "verlet", "integration.r_cut": 4.0, "integration.tail": "linear",
+      "integration.tail_switch": 4.0}, r"&integration tail_switch = 4: allowed range \[0, 3.99"),
     ({"integration.dt": 2.0}, r"&integration dt = 2: allowed range"),
     ({"physics.min_distance": 2.0}, r"&physics min_distance = 2"),
     ({"physics.tilt": "eq_9"}, r"&physics tilt = 'eq_9': allowed values"),

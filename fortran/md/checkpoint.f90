@@ -30,7 +30,8 @@ contains
     call random_seed(get=rng)
     call ckpt_put(w, [transfer(s%n, b), transfer(s%step, b), transfer(s%t, b), &
          transfer(s%piston_h, b), transfer(s%piston_force, b), transfer(s%phase, b), &
-         transfer(s%has_previous, b), transfer(s%tail_ready, b), transfer(k, b)])
+         transfer(s%has_previous, b), transfer(s%tail_ready, b), transfer(s%tail_step, b), &
+         transfer(k, b)])
     call ckpt_put(w, transfer(rng, b))
     call ckpt_put(w, transfer(s%x, b)); call ckpt_put(w, transfer(s%y, b))
     call ckpt_put(w, transfer(s%vx, b)); call ckpt_put(w, transfer(s%vy, b))
@@ -38,7 +39,9 @@ contains
     call ckpt_put(w, transfer(s%fx, b)); call ckpt_put(w, transfer(s%fy, b))
     call ckpt_put(w, transfer(s%fmag, b)); call ckpt_put(w, transfer(s%s3, b))
     call ckpt_put(w, transfer(s%fx_far, b)); call ckpt_put(w, transfer(s%fy_far, b))
-    call ckpt_put(w, transfer(s%s3_far, b)); call ckpt_put(w, transfer(s%id, b))
+    call ckpt_put(w, transfer(s%s3_far, b))
+    call ckpt_put(w, transfer(s%dfx_far, b)); call ckpt_put(w, transfer(s%dfy_far, b))
+    call ckpt_put(w, transfer(s%ds3_far, b)); call ckpt_put(w, transfer(s%id, b))
     call ckpt_put(w, transfer(s%species, b)); call ckpt_put(w, transfer(s%mass, b))
     call ckpt_put(w, transfer(s%mu, b)); call ckpt_put(w, transfer(s%wsin, b))
     call ckpt_put(w, transfer(s%nfac, b))
@@ -74,7 +77,7 @@ contains
       return
     end if
     if (ios == 0) read(u, iostat=ios) s%step, s%t, s%piston_h, s%piston_force, s%phase, &
-         s%has_previous, s%tail_ready, k
+         s%has_previous, s%tail_ready, s%tail_step, k
     if (ios == 0 .and. (k < 1 .or. k > 1000)) ios = 1
     if (ios == 0) then
       allocate(rng(k))
@@ -82,7 +85,7 @@ contains
       if (ios == 0) call random_seed(put=rng)
     end if
     if (ios == 0) read(u, iostat=ios) s%x, s%y, s%vx, s%vy, s%xp, s%yp, s%fx, s%fy, s%fmag, &
-         s%s3, s%fx_far, s%fy_far, s%s3_far, s%id, s%species, s%mass, s%mu, s%wsin, s%nfac
+         s%s3, s%fx_far, s%fy_far, s%s3_far, s%dfx_far, s%dfy_far, s%ds3_far, s%id, s%species, s%mass, s%mu, s%wsin, s%nfac
     if (ios == 0) read(u, iostat=ios) nl%valid, nl%builds, nl%pairs, nl%evaluated, has_list
     if (ios == 0 .and. has_list) then
       read(u, iostat=ios) ncs, nnb

@@ -178,20 +178,41 @@ contains
       end if
       call nlist_refresh(nl, s)
       if (m%tail_frozen) then
-        if (mod(s%step, int(m%tail_every, i8)) == 0 .or. .not. s%tail_ready) then
-          call pair_forces_far(s%n, s%x, s%y, s%mu, s%wsin, m%k_pair, m%r_cut**2, r3, &
-               s%fx_far, s%fy_far, s%s3_far)
-          s%tail_ready = .true.
-        end if
+        if (mod(s%step, int(m%tail_every, i8)) == 0 .or. .not. s%tail_ready) call far_field(sim)
       end if
       call init_forces(sim, m%tail_frozen)
       call pair_forces_list(s%n, s%x, s%y, s%mu, s%wsin, m%k_pair, m%r_cut**2, m%shift4, &
-           nl%check, r3, nl%start, nl%nbr, s%fx, s%fy, s%s3, r2min, own=nl%own)
+           nl%check, r3, nl%start, nl%nbr, s%fx, s%fy, s%s3, r2min, own=nl%own, split=m%split)
       nl%evaluated = nl%evaluated + nl%pairs
     end associate
   end subroutine pair_pass
 
-  !> fx, fy, s3 = the frozen far field (far) or 0; serial below par_min_loop particles.
+  !> The far field (pairs beyond r_c) at the current step; for tail = 'linear' also its change
+  !> per step since the previous evaluation (zero until there is one: the first interval is frozen).
+  subroutine far_field(sim)
+    type(sim_t), intent(inout) :: sim
+    real(dp) :: per_step
+    associate (s => sim%s, m => sim%m)
+      if (m%tail_linear .and. s%tail_ready .and. s%step > s%tail_step) then
+        s%dfx_far = s%fx_far; s%dfy_far = s%fy_far; s%ds3_far = s%s3_far
+      end if
+      call pair_forces_far(s%n, s%x, s%y, s%mu, s%wsin, m%k_pair, m%r_cut**2, m%dry_order > 0, &
+           s%fx_far, s%fy_far, s%s3_far, m%split)
+      if (m%tail_linear .and. s%tail_ready .and. s%step > s%tail_step) then
+        per_step = 1.0_dp/real(s%step - s%tail_step, dp)
+        s%dfx_far = (s%fx_far - s%dfx_far)*per_step
+        s%dfy_far = (s%fy_far - s%dfy_far)*per_step
+        s%ds3_far = (s%s3_far - s%ds3_far)*per_step
+      else
+        s%dfx_far = 0; s%dfy_far = 0; s%ds3_far = 0
+      end if
+      s%tail_ready = .true.
+      s%tail_step = s%step
+    end associate
+  end subroutine far_field
+
+  !> fx, fy, s3 = the far field (far: frozen, or extrapolated linearly from its last two
+  !> evaluations for tail = 'linear') or 0; serial below par_min_loop particles.
   subroutine init_forces(sim, far)
     type(sim_t), intent(inout) :: sim
     logical, intent(in) :: far
@@ -211,8 +232,14 @@ contains
   contains
     subroutine init_range(lo, hi)
       integer, intent(in) :: lo, hi
+      real(dp) :: a
       associate (s => sim%s)
-        if (far) then
+        if (far .and. sim%m%tail_linear) then
+          a = real(s%step - s%tail_step, dp)
+          s%fx(lo:hi) = s%fx_far(lo:hi) + a*s%dfx_far(lo:hi)
+          s%fy(lo:hi) = s%fy_far(lo:hi) + a*s%dfy_far(lo:hi)
+          s%s3(lo:hi) = s%s3_far(lo:hi) + a*s%ds3_far(lo:hi)
+        else if (far) then
           s%fx(lo:hi) = s%fx_far(lo:hi)
           s%fy(lo:hi) = s%fy_far(lo:hi)
           s%s3(lo:hi) = s%s3_far(lo:hi)

@@ -13,6 +13,7 @@
 module model
   use kinds, only: dp, pi, mu0
   use scene, only: scene_t
+  use pair_forces, only: split_t, split_of
   implicit none
   private
 
@@ -53,7 +54,9 @@ module model
     integer :: neighbour = 0             !< nb_* of module neighbours
     real(dp) :: r_cut = 0, skin = 0
     real(dp) :: shift4 = 0               !< r_c^-4 for the shifted force, else 0
-    logical :: tail_frozen = .false.
+    logical :: tail_frozen = .false.     !< a far field beyond r_c evaluated every tail_every steps
+    logical :: tail_linear = .false.     !< ... and extrapolated linearly in between
+    type(split_t) :: split               !< near/far hand-over (off: sharp at r_c, or no tail)
     integer :: tail_every = 100
     ! geometry and step
     real(dp) :: width = 0, height = 0, dt = 0
@@ -71,7 +74,7 @@ contains
   subroutine model_build(sc, m)
     type(scene_t), intent(in) :: sc
     type(model_t), intent(out) :: m
-    real(dp) :: v1, k, dk, eps, theta, phi, c
+    real(dp) :: v1, k, dk, eps, theta, phi, c, w
     integer :: s
 
     m%length_unit = sc%diameter
@@ -128,7 +131,13 @@ contains
     m%skin = sc%skin
     m%shift4 = 0
     if (m%neighbour /= 0 .and. trim(sc%truncation) == 'shifted_force') m%shift4 = sc%r_cut**(-4)
-    m%tail_frozen = m%neighbour /= 0 .and. trim(sc%tail) == 'frozen'
+    m%tail_frozen = m%neighbour /= 0 .and. (trim(sc%tail) == 'frozen' .or. trim(sc%tail) == 'linear')
+    m%tail_linear = m%tail_frozen .and. trim(sc%tail) == 'linear'
+    if (m%tail_frozen) then
+      w = sc%tail_switch
+      if (w < 0) w = merge(1.0_dp, 0.0_dp, m%tail_linear)
+      m%split = split_of(sc%r_cut, w)
+    end if
     m%tail_every = sc%tail_every
     m%width = sc%width
     m%height = sc%height

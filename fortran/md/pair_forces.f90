@@ -16,6 +16,7 @@ module pair_forces
 
   public :: dipole_kernel, pair_forces_all, pair_forces_list, pair_forces_far, pair_energy_all
   public :: lj_law_t, lj_law, lj_kernel, lj_energy
+  public :: split_t, split_of, near_weight
 
   integer, parameter :: mode_all = 1, mode_list = 2
   !> Mean listed pairs per row from which dipole lists go row by row (rows_list) instead of
@@ -38,11 +39,42 @@ module pair_forces
     real(dp) :: rc2 = 25        !< R^2: zero beyond the cut-off R, for every strategy [a^2]
   end type lj_law_t
 
+  !> Smooth hand-over between the near pairs (neighbour list, every step) and the far field
+  !> (all pairs, every tail_every steps): weight S(r) on the near side, 1 - S(r) on the far
+  !> side, S = 1 below r_in, 0 from r_c on, and the C2 smoothstep S = 1 - x^3 (10 - 15 x + 6 x^2)
+  !> in x = (r^2 - r_in^2)/(r_c^2 - r_in^2) between (no square root). Off (on = .false.): the
+  !> sharp split at r_c. A pair crossing r_c then moves its force from one side to the other
+  !> continuously, so the far field stays smooth in time between its evaluations.
+  type :: split_t
+    logical :: on = .false.
+    real(dp) :: ri2 = 0        !< r_in^2 [D1^2]
+    real(dp) :: inv_w = 0      !< 1/(r_c^2 - r_in^2) [D1^-2]
+  end type split_t
+
   !> Spill buffers of threaded_pass (n, 3, threads): reactions a thread puts on
   !> rows owned by later threads. Kept between passes and all zero between them.
   real(dp), allocatable :: spill(:, :, :)
 
 contains
+
+  !> The hand-over over [r_c - width, r_c] [D1]; width <= 0: the sharp split at r_c.
+  pure function split_of(r_cut, width) result(sp)
+    real(dp), intent(in) :: r_cut, width
+    type(split_t) :: sp
+    sp%on = width > 0
+    if (.not. sp%on) return
+    sp%ri2 = (r_cut - width)**2
+    sp%inv_w = 1.0_dp/(r_cut**2 - sp%ri2)
+  end function split_of
+
+  !> Near-side weight S at squared distance r2 [D1^2] (1 - S on the far side).
+  pure elemental real(dp) function near_weight(sp, r2) result(w)
+    type(split_t), intent(in) :: sp
+    real(dp), intent(in) :: r2
+    real(dp) :: x
+    x = min(1.0_dp, max(0.0_dp, (r2 - sp%ri2)*sp%inv_w))
+    w = 1.0_dp - x*x*x*(10.0_dp + x*(6.0_dp*x - 15.0_dp))
+  end function near_weight
 
   !> Kernel for one pair at squared distance r2 [D1^2]: the force on i is
   !> k mu_i mu_j s5 (r_i - r_j), with s5 = r^-5 - shift4 r^-1, and s3 = r^-3.
@@ -187,15 +219,16 @@ contains
     real(dp), intent(out) :: r2min           !< smallest squared pair distance [D1^2]
     type(lj_law_t), intent(in), optional :: law   !< Lennard-Jones instead of the dipole law
     integer :: dummy(1)
-    call threaded_pass(mode_all, kernel_of(law), law_of(law), n, x, y, mu, wsin, k_pair, &
-         0.0_dp, 0.0_dp, 0.0_dp, .false., with_r3, dummy, dummy, fx, fy, s3, r2min)
+    call threaded_pass(mode_all, kernel_of(law), law_of(law), split_t(), n, x, y, mu, wsin, &
+         k_pair, 0.0_dp, 0.0_dp, 0.0_dp, .false., with_r3, dummy, dummy, fx, fy, s3, r2min)
   end subroutine pair_forces_all
 
   !> Half neighbour list (pairs i < j stored once, CSR: the neighbours of i
   !> are nbr(start(i) : start(i+1)-1), own(k) the row of pair k). Pairs at r >= r_c
-  !> are skipped when check is set (the thesis variant r_c = r_v uses every listed pair).
+  !> are skipped when check is set (the thesis variant r_c = r_v uses every listed pair);
+  !> with a split (dipole), pairs are weighted by its near side S(r).
   subroutine pair_forces_list(n, x, y, mu, wsin, k_pair, rc2, shift4, check, with_r3, &
-       start, nbr, fx, fy, s3, r2min, law, own)
+       start, nbr, fx, fy, s3, r2min, law, own, split)
     integer, intent(in) :: n
     real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair
     real(dp), intent(in) :: rc2       !< squared cut-off [D1^2]
@@ -207,7 +240,10 @@ contains
     real(dp), intent(out) :: r2min    !< smallest squared distance among listed pairs
     type(lj_law_t), intent(in), optional :: law   !< Lennard-Jones instead of the dipole law
     integer, intent(in), contiguous :: own(:)   !< the row i of each listed pair (nlist_t own)
-    call threaded_pass(mode_list, kernel_of(law), law_of(law), n, x, y, mu, wsin, k_pair, &
+    type(split_t), intent(in), optional :: split  !< smooth near/far hand-over (far field on)
+    type(split_t) :: sp
+    if (present(split)) sp = split
+    call threaded_pass(mode_list, kernel_of(law), law_of(law), sp, n, x, y, mu, wsin, k_pair, &
          0.0_dp, rc2, shift4, check, with_r3, start, nbr, fx, fy, s3, r2min, own)
   end subroutine pair_forces_list
 
@@ -223,28 +259,33 @@ contains
     if (present(law)) l = law
   end function law_of
 
-  !> The far field: every pair at r >= r_c, O(N^2), for the frozen tail
-  !> correction (recomputed every tail_every steps). Overwrites fx, fy, s3.
-  subroutine pair_forces_far(n, x, y, mu, wsin, k_pair, rc2, with_r3, fx, fy, s3)
+  !> The far field: every pair at r >= r_c, O(N^2), for the tail correction (recomputed
+  !> every tail_every steps); with a split, every pair at r >= r_in weighted by 1 - S(r).
+  !> Overwrites fx, fy, s3.
+  subroutine pair_forces_far(n, x, y, mu, wsin, k_pair, rc2, with_r3, fx, fy, s3, split)
     integer, intent(in) :: n
     real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair, rc2
     logical, intent(in) :: with_r3
     real(dp), intent(out) :: fx(n), fy(n), s3(n)
+    type(split_t), intent(in) :: split
     integer :: dummy(1)
-    real(dp) :: r2min
+    real(dp) :: r2min, r2_from
     fx = 0; fy = 0; s3 = 0
-    call threaded_pass(mode_all, kernel_dipole, lj_law_t(), n, x, y, mu, wsin, k_pair, rc2, &
-         0.0_dp, 0.0_dp, .false., with_r3, dummy, dummy, fx, fy, s3, r2min)
+    r2_from = rc2
+    if (split%on) r2_from = split%ri2
+    call threaded_pass(mode_all, kernel_dipole, lj_law_t(), split, n, x, y, mu, wsin, k_pair, &
+         r2_from, 0.0_dp, 0.0_dp, .false., with_r3, dummy, dummy, fx, fy, s3, r2min)
   end subroutine pair_forces_far
 
   !> Rows i_lo..i_hi of the all-pairs triangle; pairs with r^2 < r2_min are
   !> masked out (0 for the full sum, r_c^2 for the far field). Reactions on
   !> j <= hi_direct go to fx, fy, s3, those on j > hi_direct to the spill
   !> arrays sx, sy, ss (another thread owns those rows; see threaded_pass).
-  subroutine rows_all(kernel, l, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, r2_min, &
-       with_r3, fx, fy, s3, sx, sy, ss, r2low)
+  subroutine rows_all(kernel, l, sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, &
+       r2_min, with_r3, fx, fy, s3, sx, sy, ss, r2low)
     integer, intent(in) :: kernel, i_lo, i_hi, hi_direct, n
     type(lj_law_t), intent(in) :: l
+    type(split_t), intent(in) :: sp
     real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair, r2_min
     logical, intent(in) :: with_r3
     real(dp), intent(inout) :: fx(n), fy(n), s3(n)
@@ -254,10 +295,10 @@ contains
     real(dp) :: fxi, fyi, s3i
     do i = i_lo, i_hi
       fxi = 0; fyi = 0; s3i = 0
-      call row_segment(kernel, l, i, i + 1, min(n, hi_direct), n, x, y, mu, wsin, k_pair, &
+      call row_segment(kernel, l, sp, i, i + 1, min(n, hi_direct), n, x, y, mu, wsin, k_pair, &
            r2_min, with_r3, fx, fy, s3, fxi, fyi, s3i, r2low)
-      if (hi_direct < n) call row_segment(kernel, l, i, max(i + 1, hi_direct + 1), n, n, x, &
-           y, mu, wsin, k_pair, r2_min, with_r3, sx, sy, ss, fxi, fyi, s3i, r2low)
+      if (hi_direct < n) call row_segment(kernel, l, sp, i, max(i + 1, hi_direct + 1), n, n, &
+           x, y, mu, wsin, k_pair, r2_min, with_r3, sx, sy, ss, fxi, fyi, s3i, r2low)
       fx(i) = fx(i) + fxi
       fy(i) = fy(i) + fyi
       if (with_r3) s3(i) = s3(i) + s3i
@@ -267,10 +308,13 @@ contains
   !> Pairs (i, j), j = j_lo..j_hi, of the triangle (contiguous j: vectorised).
   !> The action on i is added to fxi, fyi, s3i, the reaction to ax, ay, a3(j).
   !> One fused loop per law (the law chosen outside it); r^-3 sums for the dipole only.
-  subroutine row_segment(kernel, l, i, j_lo, j_hi, n, x, y, mu, wsin, k_pair, r2_min, &
+  !> Dipole pairs at r^2 < r2_min are masked out, and with a split (the far field) the others
+  !> weighted by its far side 1 - S(r).
+  subroutine row_segment(kernel, l, sp, i, j_lo, j_hi, n, x, y, mu, wsin, k_pair, r2_min, &
        with_r3, ax, ay, a3, fxi, fyi, s3i, r2low)
     integer, intent(in) :: kernel, i, j_lo, j_hi, n
     type(lj_law_t), intent(in) :: l
+    type(split_t), intent(in) :: sp
     real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair, r2_min
     logical, intent(in) :: with_r3
     real(dp), intent(inout) :: ax(*), ay(*), a3(*)
@@ -293,6 +337,7 @@ contains
         r2 = dx*dx + dy*dy
         low = min(low, r2)
         keep = merge(1.0_dp, 0.0_dp, r2 >= r2_min)
+        if (sp%on) keep = 1.0_dp - near_weight(sp, r2)   ! loop-invariant test (unswitched)
         call dipole_kernel(r2, 0.0_dp, s5, r3)
         c = keep*ci*mu(j)*s5
         gx = gx + c*dx
@@ -334,8 +379,9 @@ contains
   !> mu_i, wsin_i are scalars of the row, not gathered as in rows_pairs). Two passes per
   !> chunk: gather and evaluate (vectorisable), then accumulate on i and scatter on j
   !> (reactions on j > hi_direct to the spill arrays, as in rows_all).
-  subroutine rows_list(i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, shift4, check, &
-       with_r3, start, nbr, fx, fy, s3, sx, sy, ss, r2low)
+  subroutine rows_list(sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, shift4, &
+       check, with_r3, start, nbr, fx, fy, s3, sx, sy, ss, r2low)
+    type(split_t), intent(in) :: sp
     integer, intent(in) :: i_lo, i_hi, hi_direct, n
     real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair, rc2, shift4
     logical, intent(in) :: check, with_r3
@@ -364,6 +410,7 @@ contains
           low = min(low, r2)
           keep = 1
           if (check) keep = merge(1.0_dp, 0.0_dp, r2 < rc2)
+          if (sp%on) keep = near_weight(sp, r2)
           call dipole_kernel(r2, shift4, cs(m), r3s(m))
           cs(m) = keep*ci*mu(j)*cs(m)
           r3s(m) = keep*r3s(m)
@@ -417,10 +464,11 @@ contains
   !> once per chunk, outside the loops. Dipole: pairs at r >= r_c are skipped when check is
   !> set, and the r^-3 friction sums (with_r3) go along. Reactions on j > hi_direct go to the
   !> spill arrays sx, sy, ss (see threaded_pass).
-  subroutine rows_pairs(kernel, l, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, &
+  subroutine rows_pairs(kernel, l, sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, &
        shift4, check, with_r3, start, nbr, own, fx, fy, s3, sx, sy, ss, r2low)
     integer, intent(in) :: kernel, i_lo, i_hi, hi_direct, n
     type(lj_law_t), intent(in) :: l
+    type(split_t), intent(in) :: sp
     real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair, rc2, shift4
     logical, intent(in) :: check, with_r3
     integer, intent(in) :: start(n + 1), nbr(*), own(*)   ! contiguous (stride-1 index loads)
@@ -449,6 +497,7 @@ contains
       if (kernel == kernel_dipole) then
         do m = 1, nk
           keep = merge(1.0_dp, 0.0_dp, r2s(m) < rk2)
+          if (sp%on) keep = near_weight(sp, r2s(m))   ! loop-invariant test (unswitched)
           call dipole_kernel(r2s(m), shift4, s5, r3p)
           cs(m) = keep*s5        ! times k mu_i mu_j in chunk_sums (no gathers of mu, wsin here)
           t3i(m) = keep*keep3*r3p   ! 0 without the friction sums (s3 then gets + 0)
@@ -545,11 +594,12 @@ contains
   !> following blocks) into a persistent spill buffer. After a barrier the
   !> spills are added in thread order and reset to zero. The result does not
   !> depend on scheduling, and on the thread count only through round-off.
-  subroutine threaded_pass(mode, kernel, l, n, x, y, mu, wsin, k_pair, r2_min, rc2, shift4, &
-       check, with_r3, start, nbr, fx, fy, s3, r2low, own)
+  subroutine threaded_pass(mode, kernel, l, sp, n, x, y, mu, wsin, k_pair, r2_min, rc2, &
+       shift4, check, with_r3, start, nbr, fx, fy, s3, r2low, own)
     !$ use omp_lib, only: omp_get_max_threads, omp_get_thread_num
     integer, intent(in) :: mode, kernel, n
     type(lj_law_t), intent(in) :: l
+    type(split_t), intent(in) :: sp
     real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair, r2_min, rc2, shift4
     logical, intent(in) :: check, with_r3
     integer, intent(in), contiguous :: start(:), nbr(:)
@@ -620,13 +670,13 @@ contains
       integer, intent(in) :: i_lo, i_hi, hi_direct
       real(dp), intent(inout) :: ax(n), ay(n), a3(n), bx(*), by(*), b3(*), lw
       if (mode == mode_all) then
-        call rows_all(kernel, l, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, r2_min, &
+        call rows_all(kernel, l, sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, r2_min, &
              with_r3, ax, ay, a3, bx, by, b3, lw)
       else if (kernel == kernel_dipole .and. long_rows) then
-        call rows_list(i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, &
+        call rows_list(sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, &
              shift4, check, with_r3, start, nbr, ax, ay, a3, bx, by, b3, lw)
       else
-        call rows_pairs(kernel, l, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, &
+        call rows_pairs(kernel, l, sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, &
              shift4, check, with_r3, start, nbr, own, ax, ay, a3, bx, by, b3, lw)
       end if
     end subroutine rows

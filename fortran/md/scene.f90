@@ -80,7 +80,10 @@ module scene
     real(dp) :: skin = 1.0_dp            !< Verlet skin r_v - r_c [D1]
     character(len=name_len) :: truncation = 'plain'  !< | 'shifted_force'
     character(len=name_len) :: tail = 'none'         !< | 'frozen' (far field every tail_every steps)
+                                                     !< | 'linear' (and extrapolated in between)
     integer :: tail_every = 100
+    real(dp) :: tail_switch = -1.0_dp    !< width of the smooth near/far hand-over below r_cut [D1]
+                                         !< (<0: 0 = sharp for 'frozen', 1 D1 for 'linear')
     real(dp) :: target_rel_error = 0.0_dp  !< read by pyorch (bench table), ignored by the engine
     ! &protocol
     character(len=name_len) :: piston = 'prescribed'  !< 'prescribed' | 'fixed' | 'none'
@@ -135,7 +138,7 @@ contains
     logical :: gravity
     real(dp) :: mu_static, mu_dynamic, v_threshold, viscous_gamma, min_distance
     character(len=name_len) :: integrator, neighbour, truncation, tail
-    real(dp) :: dt, r_cut, skin, target_rel_error
+    real(dp) :: dt, r_cut, skin, target_rel_error, tail_switch
     integer :: tail_every
     character(len=name_len) :: piston
     real(dp) :: h_start, t_relax, relax_rate, h0, hf, phi_final, piston_speed
@@ -154,7 +157,7 @@ contains
     namelist /physics/ pair_law, wall_law, gravity, dry_friction, mu_static, &
          mu_dynamic, v_threshold, viscous_gamma, min_distance, tilt
     namelist /integration/ integrator, neighbour, dt, r_cut, skin, truncation, tail, &
-         tail_every, target_rel_error
+         tail_every, tail_switch, target_rel_error
     namelist /protocol/ piston, h_start, t_relax, relax_rate, h0, hf, phi_final, hf_reference, &
          piston_speed, t_hold, expand, t_final, t_end, piston_mass, piston_gamma, t_settle, &
          nudge, t_record, settle_speed, settle_ekin, settle_hold
@@ -186,6 +189,7 @@ contains
     integrator = sc%integrator; neighbour = sc%neighbour; dt = sc%dt
     r_cut = sc%r_cut; skin = sc%skin; truncation = sc%truncation; tail = sc%tail
     tail_every = sc%tail_every; target_rel_error = sc%target_rel_error
+    tail_switch = sc%tail_switch
     piston = sc%piston; h_start = sc%h_start; t_relax = sc%t_relax
     relax_rate = sc%relax_rate; h0 = sc%h0; hf = sc%hf; phi_final = sc%phi_final
     piston_speed = sc%piston_speed; t_hold = sc%t_hold; expand = sc%expand
@@ -219,6 +223,7 @@ contains
     sc%integrator = integrator; sc%neighbour = neighbour; sc%dt = dt
     sc%r_cut = r_cut; sc%skin = skin; sc%truncation = truncation; sc%tail = tail
     sc%tail_every = tail_every; sc%target_rel_error = target_rel_error
+    sc%tail_switch = tail_switch
     sc%piston = piston; sc%h_start = h_start; sc%t_relax = t_relax
     sc%relax_rate = relax_rate; sc%h0 = h0; sc%hf = hf; sc%phi_final = phi_final
     sc%piston_speed = piston_speed; sc%t_hold = t_hold; sc%expand = expand
@@ -877,11 +882,13 @@ contains
     call rpos('integration', 'dt', sc%dt, 1.0e-12_dp, 1.0_dp)
     call choice('integration', 'truncation', sc%truncation, &
          [character(len=name_len) :: 'plain', 'shifted_force'])
-    call choice('integration', 'tail', sc%tail, [character(len=name_len) :: 'none', 'frozen'])
+    call choice('integration', 'tail', sc%tail, [character(len=name_len) :: 'none', 'frozen', 'linear'])
     call rpos('integration', 'target_rel_error', sc%target_rel_error, 0.0_dp, 1.0_dp, .true.)
     if (trim(sc%neighbour) /= 'all_pairs') then
       call rpos('integration', 'r_cut', sc%r_cut, 1.0_dp, 1.0e4_dp)
       call ipos('integration', 'tail_every', sc%tail_every, 1, huge(1))
+      if (sc%tail_switch >= 0) call rpos('integration', 'tail_switch', &
+           sc%tail_switch, 0.0_dp, 0.999_dp*sc%r_cut, .true.)
       if (trim(sc%neighbour) /= 'cells') &
            call rpos('integration', 'skin', sc%skin, 0.0_dp, 1.0e3_dp)
     end if
@@ -1284,6 +1291,7 @@ contains
     call ps('truncation', sc%truncation, '')
     call ps('tail', sc%tail, '')
     call pi_('tail_every', sc%tail_every, '')
+    call pr('tail_switch', sc%tail_switch, 'D1 (<0: 0 for frozen, 1 for linear)')
     call pr('target_rel_error', sc%target_rel_error, 'used by pyorch only')
     call emit('/')
     call emit('&protocol')

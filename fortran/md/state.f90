@@ -15,7 +15,9 @@ module state
     real(dp), allocatable :: fmag(:)       !< |magnetic force| (pair + walls) [m1 g] (n), filled on demand
     real(dp), allocatable :: fmx(:), fmy(:)  !< magnetic force (pair + walls) [m1 g] (n), on demand
     real(dp), allocatable :: s3(:)         !< sum_j mu_j sin(theta_j) r_ij^-3 (n), dry friction only
-    real(dp), allocatable :: fx_far(:), fy_far(:), s3_far(:)  !< frozen far field (tail = 'frozen') (n)
+    real(dp), allocatable :: fx_far(:), fy_far(:), s3_far(:)  !< far field at its last evaluation (n)
+    real(dp), allocatable :: dfx_far(:), dfy_far(:), ds3_far(:)  !< its change per step between the
+                                           !< last two evaluations (tail = 'linear'; else 0) (n)
     integer, allocatable :: id(:)          !< particle id 1..n (arrays are re-sorted by cell) (n)
     integer, allocatable :: species(:)     !< species index (n)
     real(dp), allocatable :: mass(:)       !< m_i/m1 (n)
@@ -34,6 +36,7 @@ module state
     real(dp) :: calm_since = -1            !< free piston state: settling criterion holds since [T] (-1: not)
     logical :: has_previous = .false.      !< xp, yp valid
     logical :: tail_ready = .false.        !< fx_far, fy_far, s3_far computed
+    integer(i8) :: tail_step = 0           !< step of their last evaluation
   end type state_t
 
 contains
@@ -45,11 +48,13 @@ contains
     s%n = n
     allocate(s%x(n), s%y(n), s%vx(n), s%vy(n), s%xp(n), s%yp(n), s%fx(n), s%fy(n), &
          s%fmag(n), s%s3(n), s%species(n), s%mass(n), s%mu(n), s%wsin(n), s%nfac(n), &
-         s%fx_far(n), s%fy_far(n), s%s3_far(n), s%id(n), s%fmx(n), s%fmy(n))
+         s%fx_far(n), s%fy_far(n), s%s3_far(n), s%dfx_far(n), s%dfy_far(n), s%ds3_far(n), &
+         s%id(n), s%fmx(n), s%fmy(n))
     s%x = 0; s%y = 0; s%vx = 0; s%vy = 0; s%xp = 0; s%yp = 0
     s%fx = 0; s%fy = 0; s%fmag = 0; s%s3 = 0
     s%species = 1; s%mass = 1; s%mu = 1; s%wsin = 0; s%nfac = 0
     s%fx_far = 0; s%fy_far = 0; s%s3_far = 0; s%fmx = 0; s%fmy = 0
+    s%dfx_far = 0; s%dfy_far = 0; s%ds3_far = 0
     s%id = [(i, i = 1, n)]
   end subroutine state_allocate
 
@@ -61,6 +66,7 @@ contains
     s%xp = s%xp(perm); s%yp = s%yp(perm); s%fx = s%fx(perm); s%fy = s%fy(perm)
     s%fmag = s%fmag(perm); s%s3 = s%s3(perm); s%fmx = s%fmx(perm); s%fmy = s%fmy(perm)
     s%fx_far = s%fx_far(perm); s%fy_far = s%fy_far(perm); s%s3_far = s%s3_far(perm)
+    s%dfx_far = s%dfx_far(perm); s%dfy_far = s%dfy_far(perm); s%ds3_far = s%ds3_far(perm)
     s%id = s%id(perm); s%species = s%species(perm); s%mass = s%mass(perm)
     s%mu = s%mu(perm); s%wsin = s%wsin(perm); s%nfac = s%nfac(perm)
   end subroutine state_permute
