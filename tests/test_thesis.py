@@ -1,7 +1,8 @@
 """The shipped standard scene reproduces the thesis' N = 368 system (Tables 3.1, 3.2).
 
 One compression of runs/standard.nml at the thesis' faster speed, 8.33 mm/s (Table 3.2,
-§3.5), with the numerics the scene ships (Verlet r_c = 4.13 + frozen tail). The cycle's
+§3.5), with the numerics the scene ships (Verlet r_c = 4.13 + linear far field, dt 8e-3 T;
+output cadences converted to the same times: piston every 0.1 T, D_hat every 4 T). The cycle's
 maximum force is at the turnaround, so the compression alone gives it: the protocol is a
 pure function of time, and expand = .false. changes nothing before H_f. About 35 s on one
 core. Fails if H_f, the speed, the units or the physics drift away from the thesis.
@@ -15,6 +16,7 @@ from pathlib import Path
 import pytest
 
 from pyorch.run import Run, run
+from pyorch.scene import Scene
 
 RUNS = Path(__file__).resolve().parents[1] / "runs"
 V_833 = 8.33e-3 * math.sqrt(6e-3 / 9.8) / 6e-3   # 8.33 mm/s in D1/T (D1 = 6 mm)
@@ -23,10 +25,11 @@ V_833 = 8.33e-3 * math.sqrt(6e-3 / 9.8) / 6e-3   # 8.33 mm/s in D1/T (D1 = 6 mm)
 @pytest.fixture(scope="module")
 def compression(tmp_path_factory: pytest.TempPathFactory) -> Run:
     out = tmp_path_factory.mktemp("thesis") / "std833"
+    dt = float(Scene.read(RUNS / "standard.nml").get("integration", "dt"))   # [T]
     return run(RUNS / "standard.nml", out, progress=False,
                overrides={"protocol.piston_speed": V_833, "protocol.expand": False,
-                          "protocol.t_final": 0.0, "output.piston_every": 50,
-                          "output.frame_every": 0, "output.distance_every": 2000})
+                          "protocol.t_final": 0.0, "output.piston_every": round(0.1 / dt),
+                          "output.frame_every": 0, "output.distance_every": round(4.0 / dt)})
 
 
 def test_speed_is_the_thesis_speed() -> None:
