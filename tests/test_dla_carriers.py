@@ -145,7 +145,8 @@ def test_calendars_agree_with_carriers(tmp_path: Path) -> None:
     assert (ev["type"] == 5).sum() > 50 and (ev["type"] == 4).sum() == 30
     for cal in ("buckets", "heap"):
         a = _run(tmp_path, cal, **{**over, "run.calendar": cal})
-        for name in ("events.dat", "aggregate.dat", "frames.dat", "history.dat"):
+        # (not history.dat: the rescan has no cells, so no cell crossings to count)
+        for name in ("events.dat", "aggregate.dat", "frames.dat"):
             assert (a / name).read_bytes() == (ref / name).read_bytes(), (cal, name)
 
 
