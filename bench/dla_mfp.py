@@ -62,17 +62,26 @@ def spread_columns(values: pd.DataFrame, keys: Iterable[str]) -> dict[str, float
 def plot_dimension(s: pd.DataFrame, path: Path, x: str = "lambda_over_Rg",
                    xlabel: str = r"mean free path / cluster $R_g$",
                    estimators: Sequence[tuple[str, str]] = ESTIMATORS,
-                   title: str | None = None) -> Path:
+                   title: str | None = None, group: str | None = None) -> Path:
     """D (mean +- s.e.m. error bars) of each estimator against ``x`` (log axis), with the 2D
-    DLA value 1.71 and the compact/ballistic limit 2 as horizontal lines; written to ``path``."""
+    DLA value 1.71 and the compact/ballistic limit 2 as horizontal lines; written to ``path``.
+    ``group``: a column whose values are drawn as separate series (filled markers and solid
+    lines for the first value, open markers and dashed lines for the next), named in the
+    legend by the value."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(5.8, 4.2))
-    for key, lab in estimators:
-        ax.errorbar(s[x], s[key], yerr=s[key + "_sem"], marker="o", capsize=3, label=lab)
+    fig, ax = plt.subplots(figsize=(6.4, 4.6))
+    parts = [(None, s)] if group is None else list(s.groupby(group, sort=False))
+    for k, (key, lab) in enumerate(estimators):
+        colour = f"C{k}"
+        for j, (name, part) in enumerate(parts):
+            ax.errorbar(part[x], part[key], yerr=part[key + "_sem"], marker="o", capsize=3,
+                        color=colour, ls="-" if j == 0 else "--",
+                        mfc=colour if j == 0 else "white",
+                        label=lab if name is None else f"{lab}: {name}")
     ax.axhline(DLA_D, color="0.5", ls="--", lw=1)
     ax.text(s[x].min(), DLA_D + 0.005, "DLA 1.71", fontsize=8, va="bottom")
     ax.axhline(2.0, color="0.5", ls=":", lw=1)
@@ -82,7 +91,7 @@ def plot_dimension(s: pd.DataFrame, path: Path, x: str = "lambda_over_Rg",
     ax.set_ylabel("fractal dimension $D$")
     if title:
         ax.set_title(title, fontsize=9)
-    ax.legend(frameon=False)
+    ax.legend(frameon=False, fontsize=7 if group else 9, loc="lower right" if group else "best")
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)

@@ -10,7 +10,8 @@ R_max / 2]), by R_g growth and by box counting: mean +- standard error over the 
     OMP_NUM_THREADS=1 .venv/bin/python bench/dla_mfp_carrier.py [--workers 2]
 
 Writes bench/results/dla_mfp_carrier.csv (one row per point), dla_mfp_carrier_runs.csv (one
-row per cluster) and dla_mfp_carrier.png.
+row per cluster), dla_mfp_carrier.png (D against lambda / R_g) and dla_mfp_carrier_clusters.png
+(a cluster of the smallest and of the largest mean free path).
 """
 from __future__ import annotations
 
@@ -34,7 +35,7 @@ from pyorch.scene import Scene  # noqa: E402
 
 SWEEP = REPO / "runs" / "sweeps" / "dla_mfp_carrier.toml"
 BASE = REPO / "runs" / "dla_carrier.nml"
-KEYS = ("D_mass_radius", "D_rg", "D_box")
+KEYS = ("D_mass_radius", "D_mass_radius_third", "D_rg", "D_box")
 
 
 def species(scene: Scene) -> tuple[list[int], list[float], float]:
@@ -49,16 +50,20 @@ def species(scene: Scene) -> tuple[list[int], list[float], float]:
 
 
 def cluster_row(run_dir: Path) -> dict[str, float]:
-    """One cluster: members, final R_g [L], R_max [L] from the seed, the three D estimates,
-    the time [tau] the run ended and whether every sticky disk stuck."""
+    """One cluster: members, final R_g [L], R_max [L] from the seed, the D estimates (mass-radius
+    over [3 diameters, R_max / 2] and, for the fit-range sensitivity, [3 diameters, R_max / 3];
+    R_g growth; box counting), the time [tau] the run ended and whether every sticky disk
+    stuck."""
     ag = dla.aggregate(run_dir)
     p = ag[["x", "y"]].to_numpy()
     dims = dla.dimensions(run_dir)
+    third = dla.dimensions(run_dir, r_max_fraction=1.0 / 3.0)["mass_radius"]
     meta = json.loads((run_dir / "run.json").read_text())
     return {"members": float(len(ag) - 1), "R_g": final_rg(run_dir),
             "R_max": float(np.hypot(*(p - p[0]).T).max()),
             "D_mass_radius": dims["mass_radius"].d, "D_mass_radius_fit_lo": dims["mass_radius"].lo,
-            "D_mass_radius_fit_hi": dims["mass_radius"].hi, "D_rg": dims["rg"].d,
+            "D_mass_radius_fit_hi": dims["mass_radius"].hi, "D_mass_radius_third": third.d,
+            "D_rg": dims["rg"].d,
             "D_box": dims["box"].d, "t_final": float(meta["t_reached"]),
             "all_stuck": float(meta["n_free_sticky"] == 0),
             "cpu_s": float(meta["event_loop_cpu_seconds"]), "events": float(meta["events"])}
@@ -112,6 +117,21 @@ def summarise(runs: pd.DataFrame, measure: bool = True) -> pd.DataFrame:
     return pd.DataFrame(rows).sort_values("lambda").reset_index(drop=True)
 
 
+def clusters_text(clusters: pd.Series) -> str:
+    """'6' or '3-6': the number of clusters per point."""
+    lo, hi = int(clusters.min()), int(clusters.max())
+    return f"{lo}" if lo == hi else f"{lo}-{hi}"
+
+
+def series_names(s: pd.DataFrame) -> pd.Series:
+    """The two families of points: the carrier series (the smallest box, carriers 0..) and the
+    dilute boxes without carriers (their sticky packing fraction in the name)."""
+    small = s["box"] == s["box"].min()
+    lo, hi = s.loc[~small, "box"].min(), s.loc[~small, "box"].max()
+    return pd.Series(np.where(small, f"box {s['box'].min():.0f} L, carriers",
+                              f"no carriers, box {lo:.0f}-{hi:.0f} L"), index=s.index)
+
+
 def cluster_table(df: pd.DataFrame) -> pd.DataFrame:
     """One row per completed run of the sweep: its point and :func:`cluster_row`."""
     rows = []
@@ -120,8 +140,44 @@ def cluster_table(df: pd.DataFrame) -> pd.DataFrame:
         counts, masses, r = species(sc)
         rows.append({"box": float(p["box.lx"]), "sticky": counts[0], "carriers": counts[1],
                      "seed": int(p["disks.seed"]), "masses": masses, "radius": r,
+                     "dir": str(p["dir"]),
                      **cluster_row(Path(p["dir"]))})
     return pd.DataFrame(rows)
+
+
+def plot_clusters(runs: pd.DataFrame, path: Path) -> Path:
+    """The first cluster of the smallest and of the largest mean free path side by side, members
+    drawn to scale and coloured by sticking order; written to ``path``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.collections import EllipseCollection
+
+    dense = runs[(runs["box"] == runs["box"].min()) & (runs["carriers"] == runs["carriers"].max())]
+    dilute = runs[runs["box"] == runs["box"].max()]
+    picks = [dense.sort_values("seed").iloc[0], dilute.sort_values("seed").iloc[0]]
+    fig, axes = plt.subplots(1, 2, figsize=(9, 4.6))
+    for ax, row in zip(axes, picks):
+        ag = dla.aggregate(row["dir"])
+        xy = ag[["x", "y"]].to_numpy() - ag[["x", "y"]].to_numpy()[0]
+        d = 2.0 * ag["r"].to_numpy()
+        ec = EllipseCollection(d, d, np.zeros_like(d), units="xy", offsets=xy,
+                               offset_transform=ax.transData, cmap="viridis", linewidths=0)
+        ec.set_array(ag["member"].to_numpy(dtype=float))
+        ax.add_collection(ec)
+        lim = 1.05 * float(np.abs(xy).max()) + 1.0
+        ax.set_xlim(-lim, lim)
+        ax.set_ylim(-lim, lim)
+        ax.set_aspect("equal")
+        ax.set_title(f"box {row['box']:.0f} L, {int(row['carriers'])} carriers, seed "
+                     f"{int(row['seed'])}: D = {row['D_mass_radius']:.2f}", fontsize=9)
+        ax.set_xlabel(r"$x$ from the seed [$L$]")
+    axes[0].set_ylabel(r"$y$ from the seed [$L$]")
+    fig.colorbar(ec, ax=axes, shrink=0.8, label="member (sticking order)")
+    fig.savefig(path, dpi=110, bbox_inches="tight")
+    plt.close(fig)
+    return path
 
 
 def main() -> None:
@@ -133,15 +189,17 @@ def main() -> None:
     runs = cluster_table(run_sweep(SWEEP, args.workers))
     s = summarise(runs, measure=not args.no_measure)
     OUT.mkdir(parents=True, exist_ok=True)
-    runs.drop(columns=["masses"]).to_csv(OUT / "dla_mfp_carrier_runs.csv", index=False)
+    runs.drop(columns=["masses", "dir"]).to_csv(OUT / "dla_mfp_carrier_runs.csv", index=False)
     s.to_csv(OUT / "dla_mfp_carrier.csv", index=False)
     print(machine_line())
     print(s.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
-    print(plot_dimension(s, OUT / "dla_mfp_carrier.png",
+    print(plot_dimension(s.assign(series=series_names(s)), OUT / "dla_mfp_carrier.png",
                          estimators=(("D_mass_radius", "mass-radius (quoted)"),
                                      ("D_rg", r"$R_g$ growth"), ("D_box", "box counting")),
-                         title="sticky disks among carriers (sticky = .false.), "
-                               "2500 per cluster"))
+                         title=f"{int(s['sticky'].iloc[0])} sticky disks per cluster, "
+                               f"{clusters_text(s['clusters'])} clusters per point "
+                               "(mean +- s.e.m.)", group="series"))
+    print(plot_clusters(runs, OUT / "dla_mfp_carrier_clusters.png"))
 
 
 if __name__ == "__main__":
