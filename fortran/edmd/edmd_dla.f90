@@ -404,7 +404,8 @@ contains
     call put_real(text, 'seed_radius', self%seed_radius, 'L (0 = no seed disk)')
     call put_real(text, 'seed_x', self%seed_x, 'L')
     call put_real(text, 'seed_y', self%seed_y, 'L')
-    call put_logical(text, 'last_bounces', self%last_bounces, 'the last free disk bounces')
+    call put_logical(text, 'last_bounces', self%last_bounces, &
+         'the last free sticky disk bounces')
     call put_logical(text, 'stop_when_done', self%stop_when_done, &
          'end when every sticky disk is stuck')
     text = text//'/'//achar(10)
