@@ -32,8 +32,9 @@
 !> Sticking is the rule of a collision with a static disk: the free disk stops
 !> at contact and becomes static, recording its time, event and the member it
 !> hit (its parent: the aggregate is a tree rooted at the seed); its free
-!> neighbours are told. With `last_bounces` the last free disk bounces
-!> elastically off the aggregate instead (the seed's option).
+!> neighbours are told. A disk of a species that does not stick (sticky = .false.:
+!> a carrier of the gas) bounces elastically off the aggregate instead, as does the
+!> last free sticky disk with `last_bounces` (the seed's option).
 module edmd_core
   use kinds, only: dp, i8
   use errors, only: status_t, set_error, exit_numerical, exit_bad_input
@@ -90,6 +91,7 @@ module edmd_core
     ! rules
     logical :: sticking = .true.
     logical :: last_bounces = .false.
+    logical, allocatable :: sticky(:)       !< disk i sticks to the aggregate (else bounces off)
     real(dp) :: guard_tol = 1.0e-9_dp       !< allowed overlap / (r_i + r_j) (round-off)
     ! clock and counters
     real(dp) :: t = 0                       !< time of the last event [tau]
@@ -97,6 +99,7 @@ module edmd_core
     integer(i8) :: n_pair = 0, n_wall = 0, n_stick = 0, n_bounce = 0, n_cross = 0
     integer(i8) :: n_stale = 0              !< stale calendar entries re-predicted (not state)
     integer :: n_free = 0
+    integer :: n_free_sticky = 0            !< free disks that stick (stop when none is left)
     integer(i8) :: n_same = 0               !< consecutive events at the same time (guard)
     integer(i8) :: max_same = 0             !< guard: allowed zero-time cascade length
     real(dp) :: virial = 0                  !< sum of r_ij . dp_i over free-free collisions [M L^2/tau]
@@ -107,6 +110,8 @@ module edmd_core
     integer(i8), allocatable :: ev_stuck(:)
     integer :: n_new = 0                    !< disks stuck since the caller last looked
     integer, allocatable :: new_stuck(:)
+    real(dp), allocatable :: v_hit(:, :)    !< (2, n) velocity of disk i when it stuck [L/tau]
+                                            !< (read for the rows of new_stuck; not state)
     ! event log (optional, small systems)
     logical :: logging = .false.
     integer :: n_log = 0
@@ -147,12 +152,13 @@ contains
   ! ---------------------------------------------------------------- set-up
   !> Allocate n disks with radii r [L] and masses m [M] (m = huge: static) in
   !> the box; cells of side >= the largest diameter. calendar: 'buckets', 'heap'
-  !> or 'rescan'.
-  subroutine ed_setup(s, lx, ly, r, m, calendar, sticking, last_bounces, logging)
+  !> or 'rescan'. sticky(i): disk i sticks to the aggregate (default: every disk).
+  subroutine ed_setup(s, lx, ly, r, m, calendar, sticking, last_bounces, logging, sticky)
     type(ed_t), intent(out) :: s
     real(dp), intent(in) :: lx, ly, r(:), m(:)
     character(len=*), intent(in) :: calendar
     logical, intent(in) :: sticking, last_bounces, logging
+    logical, intent(in), optional :: sticky(:)
     integer :: n
     real(dp) :: dmax
     n = size(r)
@@ -160,7 +166,10 @@ contains
     s%lx = lx
     s%ly = ly
     allocate(s%d(n), s%p(n), s%state(n), s%parent(n), s%t_stick(n), s%ev_stuck(n), &
-         s%new_stuck(n))
+         s%new_stuck(n), s%sticky(n), s%v_hit(2, n))
+    s%sticky = .true.
+    if (present(sticky)) s%sticky = sticky
+    s%v_hit = 0
     s%d(:)%r = r
     s%m = m
     s%state = state_free
@@ -297,6 +306,7 @@ contains
     s%d(first:) = s%d(perm)
     s%m(first:) = s%m(perm)
     s%state(first:) = s%state(perm)
+    s%sticky(first:) = s%sticky(perm)
     call ed_rebuild_cells(s)
   end subroutine ed_sort_by_cell
 
@@ -421,6 +431,7 @@ contains
     type(ed_t), intent(inout) :: s
     integer :: i
     s%n_free = count(s%state == state_free)
+    s%n_free_sticky = count(s%state == state_free .and. s%sticky)
     s%n_same = 0
     s%max_same = max(1000000_i8, 1000_i8*s%n)
     s%p = bq_entry_t()                      ! no entries, no predictions
@@ -833,7 +844,8 @@ contains
     vn = (s%d(i)%vx - s%d(j)%vx)*nx + (s%d(i)%vy - s%d(j)%vy)*ny   ! < 0: approaching
     s%n_events = s%n_events + 1
     if (s%state(j) /= state_free) then
-      if (s%sticking .and. .not. (s%last_bounces .and. s%n_free == 1)) then
+      if (s%sticking .and. s%sticky(i) .and. .not. (s%last_bounces .and. &
+           s%n_free_sticky == 1)) then
         call stick(s, i, j, te)
         return
       end if
@@ -870,6 +882,7 @@ contains
     real(dp), intent(in) :: te
     integer :: c, ix, iy, k
     real(dp) :: tc
+    s%v_hit(:, i) = [s%d(i)%vx, s%d(i)%vy]
     s%d(i)%vx = 0.0_dp
     s%d(i)%vy = 0.0_dp
     s%state(i) = state_stuck
@@ -878,6 +891,7 @@ contains
     s%ev_stuck(i) = s%n_events
     s%d(i)%coll = s%d(i)%coll + 1
     s%n_free = s%n_free - 1
+    s%n_free_sticky = s%n_free_sticky - 1
     s%n_stick = s%n_stick + 1
     s%n_new = s%n_new + 1
     s%new_stuck(s%n_new) = i

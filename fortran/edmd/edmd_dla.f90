@@ -45,6 +45,7 @@ module edmd_dla
     real(dp) :: radius(max_species) = 0.5_dp          !< [L]
     real(dp) :: density(max_species) = 1.0_dp         !< [M/L^2] ('area') or [M/L] ('perimeter')
     character(len=name_len) :: mass_rule = 'area'
+    logical :: sticky(max_species) = .true.           !< species k sticks (else: a carrier)
     real(dp) :: kt = 1.0_dp                           !< [E]
     character(len=name_len) :: velocities = 'fixed_speed'
     character(len=name_len) :: placement = 'random'
@@ -120,20 +121,20 @@ contains
     integer(i8) :: n_species, count(max_species), seed, frame_every, history_every, check_every, &
          checkpoint_every
     character(len=name_len) :: mass_rule, velocities, placement, calendar, frames_format
-    logical :: sticking, last_bounces, stop_when_done, log_events
+    logical :: sticking, last_bounces, stop_when_done, log_events, sticky(max_species)
     integer :: u, ios
     character(len=msg_len) :: iom
     namelist /scene/ kind, title
     namelist /box/ lx, ly
-    namelist /disks/ n_species, count, radius, density, mass_rule, kt, velocities, placement, &
-         seed, x0, y0, vx0, vy0
+    namelist /disks/ n_species, count, radius, density, mass_rule, sticky, kt, velocities, &
+         placement, seed, x0, y0, vx0, vy0
     namelist /aggregate/ sticking, seed_radius, seed_x, seed_y, last_bounces, stop_when_done
     namelist /run/ calendar, tick, t_end, guard_tol
     namelist /output/ frame_every, history_every, check_every, checkpoint_every, log_events, &
          frames_format
     kind = self%kind; title = self%title; lx = self%lx; ly = self%ly
     n_species = self%n_species; count = self%count; radius = self%radius
-    density = self%density; mass_rule = self%mass_rule; kt = self%kt
+    density = self%density; mass_rule = self%mass_rule; sticky = self%sticky; kt = self%kt
     velocities = self%velocities; placement = self%placement; seed = self%seed
     x0 = self%x0; y0 = self%y0; vx0 = self%vx0; vy0 = self%vy0
     sticking = self%sticking; seed_radius = self%seed_radius; seed_x = self%seed_x
@@ -160,7 +161,7 @@ contains
     if (st%code /= 0) return
     self%kind = kind; self%title = title; self%lx = lx; self%ly = ly
     self%n_species = n_species; self%count = count; self%radius = radius
-    self%density = density; self%mass_rule = mass_rule; self%kt = kt
+    self%density = density; self%mass_rule = mass_rule; self%sticky = sticky; self%kt = kt
     self%velocities = velocities; self%placement = placement; self%seed = seed
     self%x0 = x0; self%y0 = y0; self%vx0 = vx0; self%vy0 = vy0
     self%sticking = sticking; self%seed_radius = seed_radius; self%seed_x = seed_x
@@ -197,6 +198,7 @@ contains
          sum(self%count(1:self%n_species)), 1_i8, 10000000_i8, st)
     call check_choice(path, 'disks', 'mass_rule', self%mass_rule, [character(len=name_len) :: &
          'area', 'perimeter'], st)
+    call validate_sticky(self, path, st)
     call check_real(path, 'disks', 'kt', self%kt, 0.0_dp, 1.0e12_dp, .false., st)
     call check_choice(path, 'disks', 'velocities', self%velocities, [character(len=name_len) :: &
          'fixed_speed', 'maxwell'], st)
@@ -233,6 +235,21 @@ contains
     call check_choice(path, 'output', 'frames_format', self%frames_format, &
          [character(len=name_len) :: 'text', 'binary', 'both'], st)
   end subroutine validate
+
+  !> With sticking on, some species with disks must stick (carriers alone grow nothing: a gas
+  !> is sticking = .false.).
+  subroutine validate_sticky(self, path, st)
+    class(dla_t), intent(in) :: self
+    character(len=*), intent(in) :: path
+    type(status_t), intent(inout) :: st
+    integer :: ns
+    if (st%code /= 0 .or. .not. self%sticking) return
+    ns = int(self%n_species)
+    if (any(self%sticky(1:ns) .and. self%count(1:ns) > 0)) return
+    call set_error(st, exit_bad_input, trim(path)//': &disks sticky: no species with disks '// &
+         'sticks (sticky = .false. for every species with count > 0) while &aggregate '// &
+         'sticking = .true.: make one species sticky, or set sticking = .false. for a gas')
+  end subroutine validate_sticky
 
   !> placement = 'explicit': at most max_explicit disks, inside the box, no overlap (contact
   !> allowed), finite velocities.
@@ -289,18 +306,21 @@ contains
     class(dla_t), intent(inout) :: self
     type(status_t), intent(inout) :: st
     real(dp), allocatable :: r(:), m(:)
+    logical, allocatable :: sticky(:)
     integer :: n, k, first, i0
     type(rng_t) :: g
     first = merge(2, 1, self%seed_radius > 0)
     n = int(sum(self%count(1:self%n_species))) + first - 1
-    allocate(r(n), m(n))
+    allocate(r(n), m(n), sticky(n))
     if (first == 2) then
       r(1) = self%seed_radius
       m(1) = 0
+      sticky(1) = .true.
     end if
     i0 = first
     do k = 1, int(self%n_species)
       r(i0:i0 + self%count(k) - 1) = self%radius(k)
+      sticky(i0:i0 + self%count(k) - 1) = self%sticky(k)
       if (self%mass_rule == 'perimeter') then
         m(i0:i0 + self%count(k) - 1) = self%density(k)*pi*self%radius(k)
       else
@@ -309,7 +329,7 @@ contains
       i0 = i0 + int(self%count(k))
     end do
     call ed_setup(self%s, self%lx, self%ly, r, m, trim(self%calendar), self%sticking, &
-         self%last_bounces, self%log_events)
+         self%last_bounces, self%log_events, sticky)
     self%s%guard_tol = self%guard_tol
     if (first == 2) then
       self%s%state(1) = state_seed
@@ -362,6 +382,8 @@ contains
       call put_real(text, 'radius'//trim(ks), self%radius(k), 'L')
       call put_real(text, 'density'//trim(ks), self%density(k), &
            merge('M/L^2', 'M/L  ', self%mass_rule == 'area'))
+      call put_logical(text, 'sticky'//trim(ks), self%sticky(k), &
+           'sticks to the aggregate (.false.: a carrier, bounces off it)')
     end do
     call put_str(text, 'mass_rule', self%mass_rule, 'area: m = density pi r^2; perimeter: '// &
          'm = density pi r (the seed''s)')
@@ -382,8 +404,10 @@ contains
     call put_real(text, 'seed_radius', self%seed_radius, 'L (0 = no seed disk)')
     call put_real(text, 'seed_x', self%seed_x, 'L')
     call put_real(text, 'seed_y', self%seed_y, 'L')
-    call put_logical(text, 'last_bounces', self%last_bounces, 'the last free disk bounces')
-    call put_logical(text, 'stop_when_done', self%stop_when_done, 'end when no free disk is left')
+    call put_logical(text, 'last_bounces', self%last_bounces, &
+         'the last free sticky disk bounces')
+    call put_logical(text, 'stop_when_done', self%stop_when_done, &
+         'end when every sticky disk is stuck')
     text = text//'/'//achar(10)
     text = text//'&run'//achar(10)
     call put_str(text, 'calendar', self%calendar, 'buckets: O(1); heap: O(log N); rescan: '// &
@@ -417,16 +441,20 @@ contains
          'free, 1 stuck, 2 seed; m = 0 for the seed (static). '//units, &
          '# tick t[tau] id x[L] y[L] vx[L/tau] vy[L/tau] r[L] m[M] state[1]', append, st)
     if (self%history_every > 0) call table_open(self%history, dir, 'history.dat', &
-         '# history.dat: cumulative event counts, free disks, kinetic energy, momentum of the '// &
+         '# history.dat: cumulative event counts, free disks (all; free_sticky: those of '// &
+         'sticky species), kinetic energy, momentum of the '// &
          'free disks; pressures over the interval since the previous row (0 on the first): '// &
          'P_virial = (E_kin + sum r_ij.dp_i / (2 dt)) / A, P_wall = wall impulse / (perimeter '// &
          'dt). '//units, &
          '# tick t[tau] events[1] pair[1] wall[1] stick[1] bounce[1] cross[1] free[1] '// &
-         'E_kin[E] px[M*L/tau] py[M*L/tau] P_virial[E/L^2] P_wall[E/L^2]', append, st)
+         'E_kin[E] px[M*L/tau] py[M*L/tau] P_virial[E/L^2] P_wall[E/L^2] free_sticky[1]', &
+         append, st)
     if (self%sticking) call table_open(self%aggregate, dir, 'aggregate.dat', &
          '# aggregate.dat: members in the order they stuck (member 0 = seed); parent = the '// &
-         'disk id it stuck to (a tree); event = physical event number. '//units, &
-         '# member[1] id[1] x[L] y[L] r[L] t_stick[tau] event[1] parent[1]', append, st)
+         'disk id it stuck to (a tree); event = physical event number; vx, vy = its velocity '// &
+         'when it stuck (0 for the seed). '//units, &
+         '# member[1] id[1] x[L] y[L] r[L] t_stick[tau] event[1] parent[1] vx[L/tau] '// &
+         'vy[L/tau]', append, st)
     if (self%log_events) call table_open(self%events, dir, 'events.dat', &
          '# events.dat: every physical event; type 1 pair, 2 wall (j = -wall: 1 x-, 2 x+, '// &
          '3 y-, 4 y+), 4 stick, 5 bounce off the aggregate. '//units, &
@@ -505,9 +533,9 @@ contains
     integer, intent(in) :: i
     type(status_t), intent(inout) :: st
     character(len=300) :: line
-    write(line, '(i0,1x,i0,4(1x,'//rfmt//'),1x,i0,1x,i0)') &
+    write(line, '(i0,1x,i0,4(1x,'//rfmt//'),1x,i0,1x,i0,2(1x,'//rfmt//'))') &
          self%n_members, i, self%s%d(i)%x, self%s%d(i)%y, self%s%d(i)%r, self%s%t_stick(i), &
-         self%s%ev_stuck(i), self%s%parent(i)
+         self%s%ev_stuck(i), self%s%parent(i), self%s%v_hit(:, i)
     call table_line(self%aggregate, trim(line), st)
     self%n_members = self%n_members + 1
   end subroutine member_row
@@ -557,9 +585,10 @@ contains
         pv = (ek + self%s%virial/(2.0_dp*dt))/area
         pw = self%s%wall_impulse/(2.0_dp*(self%lx + self%ly)*dt)
       end if
-      write(line, '(i0,1x,'//rfmt//',7(1x,i0),5(1x,'//rfmt//'))') &
+      write(line, '(i0,1x,'//rfmt//',7(1x,i0),5(1x,'//rfmt//'),1x,i0)') &
            self%step, t, self%s%n_events, self%s%n_pair, self%s%n_wall, &
-           self%s%n_stick, self%s%n_bounce, self%s%n_cross, self%s%n_free, ek, mom, pv, pw
+           self%s%n_stick, self%s%n_bounce, self%s%n_cross, self%s%n_free, ek, mom, pv, pw, &
+           self%s%n_free_sticky
       call table_line(self%history, trim(line), st)
       self%s%virial = 0
       self%s%wall_impulse = 0
@@ -587,7 +616,7 @@ contains
     if (st%code /= 0) return
     self%step = self%step + 1
     if (self%stop_when_done .and. self%sticking .and. .not. self%last_bounces .and. &
-         self%s%n_free == 0) self%n_ticks = self%step
+         self%s%n_free_sticky == 0) self%n_ticks = self%step     ! every sticky disk is stuck
   end subroutine advance
 
   subroutine finish(self, st)
@@ -700,7 +729,7 @@ contains
     class(dla_t), intent(in) :: self
     character(len=:), allocatable :: s
     if (self%sticking) then
-      s = 'grow '//int_str(int(self%s%n_free, i8))
+      s = 'grow '//int_str(int(self%s%n_free_sticky, i8))
     else
       s = 'gas '//int_str(self%s%n_events)
     end if
@@ -712,6 +741,7 @@ contains
     character(len=1), parameter :: nl = achar(10)
     text = '  "n_disks": '//int_str(int(self%s%n, i8))//','//nl// &
          '  "n_free": '//int_str(int(self%s%n_free, i8))//','//nl// &
+         '  "n_free_sticky": '//int_str(int(self%s%n_free_sticky, i8))//','//nl// &
          '  "n_members": '//int_str(int(self%n_members, i8))//','//nl// &
          '  "events": '//int_str(int(self%s%n_events, i8))//','//nl// &
          '  "events_pair": '//int_str(int(self%s%n_pair, i8))//','//nl// &

@@ -10,8 +10,9 @@ Files of a run directory:
   (0 free, 1 stuck, 2 seed), positions interpolated exactly between events;
 - ``history.dat``: cumulative event counts (events, pair, wall, stick, bounce, cross), free
   disks, E_kin [E], momentum of the free disks, P_virial and P_wall [E/L^2] over the interval
-  since the previous row;
-- ``aggregate.dat``: member (0 = seed), id, x, y, r, t_stick, event, parent (a tree);
+  since the previous row, free_sticky (free disks of sticky species; the rest are carriers);
+- ``aggregate.dat``: member (0 = seed), id, x, y, r, t_stick, event, parent (a tree), vx, vy
+  [L/tau] (the disk's velocity when it stuck);
 - ``events.dat`` (``log_events``): event, t, type (1 pair, 2 wall, 4 stick, 5 bounce), i, j.
 
 Analysis: the fractal dimension of the aggregate by R_g over the growth history and by
@@ -24,14 +25,15 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from pyorch import io
 from pyorch.dla import fractal
 from pyorch.dla.fractal import Fit
 
 __all__ = ["frames", "has_frames", "frame_spec", "history", "aggregate", "events", "frame_at", "mean_free_path",
-           "henderson_z", "dimensions", "save_run_plots", "save_growth_movie",
+           "henderson_z", "contact_value", "mean_free_path_mixture", "measured_mean_free_path",
+           "sticking_energy", "dimensions", "save_run_plots", "save_growth_movie",
            "write_tables", "METRIC_KEYS", "default_metrics", "fractal"]
 
 
@@ -92,8 +94,66 @@ def frame_at(fr: pd.DataFrame, tick: int | None = None) -> pd.DataFrame:
 
 
 def mean_free_path(n_disks: float, area: float, radius: float) -> float:
-    """Mean free path [L] of a dilute 2D gas of disks: 1 / (sqrt(2) n 2r), n = N/area."""
+    """1 / (sqrt(2) n 2r) [L], n = N/area: the length quoted in bench/RESULTS.md section 14.
+
+    It takes the diameter 2r as the collision cross-section; in 2D that cross-section is the
+    length 2 sigma = 4r (centres within sigma on either side), so the kinetic-theory mean free
+    path of a dilute gas is half of this (:func:`mean_free_path_mixture`, section 23)."""
     return float(area / (np.sqrt(2.0) * n_disks * 2.0 * radius))
+
+
+def contact_value(eta: float | NDArray[np.float64]) -> NDArray[np.float64]:
+    """Pair correlation at contact g(sigma) of hard disks from Henderson's equation of state:
+    (Z - 1) / (2 eta) = (1 - 7 eta/16) / (1 - eta)^2, eta the packing fraction."""
+    e = np.asarray(eta, dtype=float)
+    return (1.0 - 7.0 * e / 16.0) / (1.0 - e) ** 2
+
+
+def mean_free_path_mixture(counts: ArrayLike, masses: ArrayLike, radius: float, area: float,
+                           of: int = 0) -> float:
+    """Enskog mean free path [L] of a disk of species ``of`` in a Maxwellian mixture of disks of
+    one radius [L] with ``counts`` disks of masses ``masses`` [M] per species in ``area`` [L^2].
+
+    lambda = <|v|> / nu, nu = sum_k n_k 2 sigma g(sigma) <|v_rel|>_k (sigma = 2r; 2 sigma is the
+    2D cross-section), <|v_rel|>_k / <|v|> = sqrt(1 + m_of / m_k), g at the total packing
+    fraction. One species: 1 / (2 sqrt(2) n sigma g). Checked against the event log
+    (:func:`measured_mean_free_path`, tests/test_dla_carriers.py)."""
+    c = np.asarray(counts, dtype=float)
+    m = np.asarray(masses, dtype=float)
+    n = c / area
+    g = float(contact_value(float(n.sum()) * np.pi * radius**2))
+    rate = float((n * 2.0 * (2.0 * radius) * g * np.sqrt(1.0 + m[of] / m)).sum())
+    return 1.0 / rate
+
+
+def measured_mean_free_path(run_dir: str | Path, mass: float) -> float:
+    """Mean free path [L] of the disks of mass ``mass`` [M] in a run with ``log_events`` and
+    frames: their mean speed over the frames divided by their pair-collision rate over the
+    run (pair events they take part in, per disk per tau; bounces off the aggregate not
+    counted). For a gas (sticking off) in a stationary state."""
+    fr = frames(run_dir)
+    first = frame_at(fr, int(fr["tick"].min()))
+    ids = set(first.loc[np.isclose(first["m"], mass, rtol=1e-12, atol=0), "id"].astype(int))
+    if not ids:
+        raise ValueError(f"no disk of mass {mass}")
+    sel = fr[fr["id"].isin(ids)]
+    speed = float(np.hypot(sel["vx"], sel["vy"]).mean())
+    ev = events(run_dir)
+    pair = ev[ev["type"] == 1]
+    hits = int(pair["i"].isin(ids).sum() + pair["j"].isin(ids).sum())
+    t = float(fr["t"].max())
+    return speed * len(ids) * t / hits
+
+
+def sticking_energy(run_dir: str | Path, masses: dict[int, float]) -> pd.DataFrame:
+    """Kinetic energy [E] carried into the aggregate: per member (in sticking order, the seed
+    excluded) t_stick [tau] and 1/2 m |v|^2 from the velocity it stuck with (aggregate.dat),
+    with ``masses`` {disk id: mass [M]}; column ``cumulative`` is the running sum."""
+    ag = aggregate(run_dir).iloc[1:]
+    m = ag["id"].map(masses).to_numpy(dtype=float)
+    e = 0.5 * m * (ag["vx"].to_numpy() ** 2 + ag["vy"].to_numpy() ** 2)
+    return pd.DataFrame({"t_stick": ag["t_stick"].to_numpy(), "energy": e,
+                         "cumulative": np.cumsum(e)})
 
 
 def henderson_z(eta: float | NDArray[np.float64]) -> NDArray[np.float64]:
@@ -246,12 +306,13 @@ def _scene_value(text: str, key: str) -> float:
 
 #: columns of :func:`default_metrics`
 METRIC_KEYS = ("members", "D_rg", "D_rg_err", "D_mass_radius", "D_mass_radius_err",
-               "free_final", "E_kin_final")
+               "free_final", "free_sticky_final", "E_kin_final", "t_final")
 
 
 def default_metrics(run: object) -> dict[str, float]:
     """Sweep results of one run (a :class:`pyorch.run.Run` or a run directory): members,
-    D by R_g and by mass-radius (with fit errors), free disks and E_kin [E] at the end."""
+    D by R_g and by mass-radius (with fit errors), free disks (all, and of sticky species),
+    E_kin [E] and the time [tau] at the end."""
     run_dir = Path(getattr(run, "dir", run))  # type: ignore[arg-type]
     out: dict[str, float] = {k: float("nan") for k in METRIC_KEYS}
     if (Path(run_dir) / "aggregate.dat").is_file():
@@ -265,5 +326,7 @@ def default_metrics(run: object) -> dict[str, float]:
     if (Path(run_dir) / "history.dat").is_file():
         h = history(run_dir)
         out["free_final"] = float(h["free"].iloc[-1])
+        out["free_sticky_final"] = float(h["free_sticky"].iloc[-1])
+        out["t_final"] = float(h["t"].iloc[-1])
         out["E_kin_final"] = float(h["E_kin"].iloc[-1])
     return out
