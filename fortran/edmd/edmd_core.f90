@@ -40,7 +40,6 @@ module edmd_core
   use edmd_heap, only: heap_t, heap_init, heap_set, heap_remove, heap_top
   use edmd_buckets, only: bq_t, bq_entry_t, bq_init, bq_set, bq_remove, bq_top
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
-  use, intrinsic :: iso_c_binding, only: c_loc, c_intptr_t, c_sizeof
   implicit none
   private
 
@@ -80,14 +79,9 @@ module edmd_core
     integer, allocatable :: state(:)        !< state_free | state_stuck | state_seed
     type(bq_entry_t), allocatable :: p(:)   !< calendar entry and prediction of each disk
     ! cells: ncx x ncy of side wx x wy, in a ring of empty cells (no bounds checks in the
-    ! 3 x 3 scans). A cell is named by the index of its list head in head(:) (disk_t%cell):
-    ! the heads are stored in tiles of 4 x 4 cells, one 64-byte line each (cell_at), and the
-    ! 3 x 3 neighbours of cell c are c + nbr(k, position of c in its tile), k = 0..8.
-    integer :: ncx = 1, ncy = 1
+    ! 3 x 3 scans); cell (cx, cy) has the index (cx + 1) + sx (cy + 1), cx = 0..ncx - 1
+    integer :: ncx = 1, ncy = 1, sx = 3
     real(dp) :: wx = 1, wy = 1
-    integer :: ntx = 1                      !< tiles per row (ring included)
-    integer :: h0 = 0                       !< index of the first tile (64-byte aligned)
-    integer :: nbr(0:8, 0:15) = 0           !< neighbour (dx, dy) = (mod(k, 3), k/3) - 1
     integer, allocatable :: head(:)
     ! calendar
     integer :: calendar = cal_buckets
@@ -186,11 +180,9 @@ contains
     s%ncy = max(1, int(ly/dmax))
     s%wx = lx/s%ncx
     s%wy = ly/s%ncy
-    s%ntx = (s%ncx + 5)/4
-    allocate(s%head(0:16*s%ntx*((s%ncy + 5)/4) + 15))
+    s%sx = s%ncx + 2
+    allocate(s%head(0:s%sx*(s%ncy + 2) - 1))
     s%head = 0
-    s%h0 = line_offset(s%head)
-    call neighbour_table(s)
     if (logging) then
       allocate(s%log_t(1024), s%log_kind(1024), s%log_i(1024), s%log_j(1024), s%log_no(1024))
     end if
@@ -202,62 +194,18 @@ contains
     integer :: cx, cy
     cx = min(s%ncx - 1, max(0, int(x/s%wx)))
     cy = min(s%ncy - 1, max(0, int(y/s%wy)))
-    cell_of = cell_at(s, cx, cy)
+    cell_of = (cx + 1) + s%sx*(cy + 1)
   end function cell_of
 
-  !> Cell (index of its list head) of column cx, row cy (-1..ncx, -1..ncy: the ring
-  !> included): tiles of 4 x 4 cells, row-major inside a tile and tile by tile, so that a
-  !> 3 x 3 neighbourhood touches 1-4 lines of heads (2.25 on average) instead of 3-6.
-  pure integer function cell_at(s, cx, cy) result(c)
-    type(ed_t), intent(in) :: s
-    integer, intent(in) :: cx, cy
-    integer :: gx, gy
-    gx = cx + 1
-    gy = cy + 1
-    c = s%h0 + 16*(s%ntx*shiftr(gy, 2) + shiftr(gx, 2)) + 4*iand(gy, 3) + iand(gx, 3)
-  end function cell_at
-
-  !> Column and row (from 0) of cell c (the inverse of cell_at).
+  !> Column and row (from 0) of cell c.
   pure subroutine cell_xy(s, c, cx, cy)
     type(ed_t), intent(in) :: s
     integer, intent(in) :: c
     integer, intent(out) :: cx, cy
-    integer :: t, ty, q
-    t = shiftr(c - s%h0, 4)
-    q = iand(c - s%h0, 15)
-    ty = t/s%ntx
-    cx = 4*(t - s%ntx*ty) + iand(q, 3) - 1
-    cy = 4*ty + shiftr(q, 2) - 1
+    cy = c/s%sx
+    cx = c - s%sx*cy - 1
+    cy = cy - 1
   end subroutine cell_xy
-
-  !> Table of the index offsets of the 3 x 3 neighbours of a cell by its position in its tile.
-  subroutine neighbour_table(s)
-    type(ed_t), intent(inout) :: s
-    integer :: q, k, cx, cy
-    do q = 0, 15
-      cx = 3 + iand(q, 3)                   ! a cell at position q of tile (1, 1)
-      cy = 3 + shiftr(q, 2)
-      do k = 0, 8
-        s%nbr(k, q) = cell_at(s, cx + mod(k, 3) - 1, cy + k/3 - 1) - cell_at(s, cx, cy)
-      end do
-    end do
-  end subroutine neighbour_table
-
-  !> Neighbour k of cell c (k = 0..8: dx = mod(k, 3) - 1, dy = k/3 - 1; 4 is c itself).
-  pure integer function neighbour(s, c, k)
-    type(ed_t), intent(in) :: s
-    integer, intent(in) :: c, k
-    neighbour = c + s%nbr(k, iand(c - s%h0, 15))
-  end function neighbour
-
-  !> Elements of a from its first one to the next 64-byte boundary (0..15): the tiles of cell
-  !> heads then coincide with cache lines (glibc aligns large blocks to 16 bytes only).
-  integer function line_offset(a) result(k)
-    integer, intent(in), target :: a(0:)
-    integer(c_intptr_t) :: adr
-    adr = transfer(c_loc(a(0)), adr)
-    k = int(modulo(-adr, 64_c_intptr_t))/int(c_sizeof(a(0)))
-  end function line_offset
 
   !> Cells of the disks in row-major numbering cx + ncx cy (-1: not placed): the checkpoint's.
   pure function ed_cells(s) result(cells)
@@ -282,7 +230,7 @@ contains
     if (ok) ok = all(cells >= 0 .and. cells < s%ncx*s%ncy)
     if (.not. ok) return
     do i = 1, s%n
-      s%d(i)%cell = cell_at(s, mod(cells(i), s%ncx), cells(i)/s%ncx)
+      s%d(i)%cell = (mod(cells(i), s%ncx) + 1) + s%sx*(cells(i)/s%ncx + 1)
     end do
     call ed_rebuild_cells(s)
   end function ed_load_cells
@@ -325,27 +273,26 @@ contains
     end do
   end subroutine ed_rebuild_cells
 
-  !> Renumber disks first..n in cell order (row by row, cx + ncx cy; stable): neighbours in space are
+  !> Renumber disks first..n in cell order (row by row; stable): neighbours in space are
   !> neighbours in memory, which keeps the event loop in cache at large N (bench/RESULTS.md).
   !> Call after placement, before velocities are drawn.
   subroutine ed_sort_by_cell(s, first)
     type(ed_t), intent(inout) :: s
     integer, intent(in) :: first
     integer :: i, k, nc
-    integer, allocatable :: cnt(:), perm(:), key(:)
-    nc = s%ncx*s%ncy
+    integer, allocatable :: cnt(:), perm(:)
+    nc = size(s%head)
     allocate(cnt(0:nc), perm(first:s%n))
-    key = ed_cells(s)
     cnt = 0
     do i = first, s%n
-      cnt(key(i) + 1) = cnt(key(i) + 1) + 1
+      cnt(s%d(i)%cell + 1) = cnt(s%d(i)%cell + 1) + 1
     end do
     do k = 1, nc
       cnt(k) = cnt(k) + cnt(k - 1)
     end do
     do i = first, s%n
-      cnt(key(i)) = cnt(key(i)) + 1
-      perm(first - 1 + cnt(key(i))) = i
+      cnt(s%d(i)%cell) = cnt(s%d(i)%cell) + 1
+      perm(first - 1 + cnt(s%d(i)%cell)) = i
     end do
     s%d(first:) = s%d(perm)
     s%m(first:) = s%m(perm)
@@ -367,20 +314,22 @@ contains
   logical function overlaps_placed(s, x, y, ri, margin)
     type(ed_t), intent(in) :: s
     real(dp), intent(in) :: x, y, ri, margin
-    integer :: c, k, j
+    integer :: c, ix, iy, j
     real(dp) :: d2, sg
     overlaps_placed = .false.
     c = cell_of(s, x, y)
-    do k = 0, 8
-      j = s%head(neighbour(s, c, k))
-      do while (j /= 0)
-        sg = (ri + s%d(j)%r)*(1.0_dp + margin)
-        d2 = (x - s%d(j)%x)**2 + (y - s%d(j)%y)**2
-        if (d2 < sg*sg) then
-          overlaps_placed = .true.
-          return
-        end if
-        j = s%d(j)%next
+    do iy = -1, 1
+      do ix = -1, 1
+        j = s%head(c + ix + s%sx*iy)
+        do while (j /= 0)
+          sg = (ri + s%d(j)%r)*(1.0_dp + margin)
+          d2 = (x - s%d(j)%x)**2 + (y - s%d(j)%y)**2
+          if (d2 < sg*sg) then
+            overlaps_placed = .true.
+            return
+          end if
+          j = s%d(j)%next
+        end do
       end do
     end do
   end function overlaps_placed
@@ -617,12 +566,12 @@ contains
     end associate
   end subroutine cross_time
 
-  !> Best pair candidate of free disk i over the cells neighbour(c, k0 + dk m), m = 0..nk - 1,
-  !> of its cell c, into its prediction record (only if earlier than the one held).
-  subroutine scan_cells(s, i, k0, dk, nk)
+  !> Best pair candidate of free disk i over nrows rows of 3 cells c0 + r sx + k step
+  !> (k = 0..2), into its prediction record (only if earlier than the one held).
+  subroutine scan_cells(s, i, c0, step, nrows)
     type(ed_t), intent(inout) :: s
-    integer, intent(in) :: i, k0, dk, nk
-    integer :: c, m, j, pj
+    integer, intent(in) :: i, c0, step, nrows
+    integer :: ix, iy, j, pj
     real(dp) :: tc, pt
     integer(i8) :: pc
     type(disk_t) :: a
@@ -630,21 +579,23 @@ contains
     pt = s%p(i)%pt
     pj = s%p(i)%pj
     pc = s%p(i)%pcount
-    c = a%cell
-    do m = 0, nk - 1
-      j = s%head(neighbour(s, c, k0 + dk*m))
-      do while (j /= 0)
-        if (j /= i) then
-          tc = pair_time(a, s%d(j))
-          if (tc < never) then
-            if (earlier(tc, ev_pair, j, pt, ev_pair, pj)) then
-              pt = tc
-              pj = j
-              pc = s%d(j)%coll
+    do iy = 0, nrows - 1
+      !GCC$ unroll 3
+      do ix = 0, 2
+        j = s%head(c0 + s%sx*iy + step*ix)
+        do while (j /= 0)
+          if (j /= i) then
+            tc = pair_time(a, s%d(j))
+            if (tc < never) then
+              if (earlier(tc, ev_pair, j, pt, ev_pair, pj)) then
+                pt = tc
+                pj = j
+                pc = s%d(j)%coll
+              end if
             end if
           end if
-        end if
-        j = s%d(j)%next
+          j = s%d(j)%next
+        end do
       end do
     end do
     s%p(i)%pt = pt
@@ -659,7 +610,7 @@ contains
     integer, intent(in) :: i
     s%p(i)%pt = never
     s%p(i)%pj = 0
-    call scan_cells(s, i, 0, 1, 9)
+    call scan_cells(s, i, s%d(i)%cell - s%sx - 1, 1, 3)
     call choose(s, i)
   end subroutine predict
 
@@ -671,17 +622,19 @@ contains
   subroutine predict_after_cross(s, i, d)
     type(ed_t), intent(inout) :: s
     integer, intent(in) :: i, d
+    integer :: c
     if (s%p(i)%pj /= 0) then
       if (s%d(s%p(i)%pj)%coll /= s%p(i)%pcount) then
         call predict(s, i)
         return
       end if
     end if
+    c = s%d(i)%cell
     select case (d)
-    case (1); call scan_cells(s, i, 0, 3, 3)         ! the column on the left
-    case (2); call scan_cells(s, i, 2, 3, 3)
-    case (3); call scan_cells(s, i, 0, 1, 3)         ! the row below
-    case (4); call scan_cells(s, i, 6, 1, 3)
+    case (1); call scan_cells(s, i, c - s%sx - 1, s%sx, 1)      ! the column on the left
+    case (2); call scan_cells(s, i, c - s%sx + 1, s%sx, 1)
+    case (3); call scan_cells(s, i, c - s%sx - 1, 1, 1)         ! the row below
+    case (4); call scan_cells(s, i, c + s%sx - 1, 1, 1)
     end select
     call choose(s, i)
   end subroutine predict_after_cross
@@ -813,9 +766,14 @@ contains
   subroutine cross(s, i, d)
     type(ed_t), intent(inout) :: s
     integer, intent(in) :: i, d
-    integer, parameter :: k_of(4) = [3, 5, 1, 7]    ! neighbour in direction x-, x+, y-, y+
     integer :: c
-    c = neighbour(s, s%d(i)%cell, k_of(d))
+    c = s%d(i)%cell
+    select case (d)
+    case (1); c = c - 1
+    case (2); c = c + 1
+    case (3); c = c - s%sx
+    case (4); c = c + s%sx
+    end select
     call cell_delete(s, i)
     call cell_insert(s, i, c)
   end subroutine cross
@@ -910,7 +868,7 @@ contains
     type(ed_t), intent(inout) :: s
     integer, intent(in) :: i, j
     real(dp), intent(in) :: te
-    integer :: m, k
+    integer :: c, ix, iy, k
     real(dp) :: tc
     s%d(i)%vx = 0.0_dp
     s%d(i)%vy = 0.0_dp
@@ -927,23 +885,26 @@ contains
     if (s%calendar == cal_rescan) return
     call cal_remove(s, i)
     ! A static disk predicts nothing: its free neighbours must learn of it now.
-    do m = 0, 8
-      k = s%head(neighbour(s, s%d(i)%cell, m))
-      do while (k /= 0)
-        if (s%state(k) == state_free) then
-          tc = pair_time(s%d(k), s%d(i))
-          if (tc < never) then
-            ! against k's best pair (kept across its crossings), not only its entry
-            if (earlier(tc, ev_pair, i, s%p(k)%pt, ev_pair, s%p(k)%pj)) then
-              s%p(k)%pt = tc
-              s%p(k)%pj = i
-              s%p(k)%pcount = s%d(i)%coll
-              if (earlier(tc, ev_pair, i, s%p(k)%key, s%p(k)%kind, s%p(k)%partner)) &
-                   call set_event(s, k, tc, ev_pair, i)
+    c = s%d(i)%cell
+    do iy = -1, 1
+      do ix = -1, 1
+        k = s%head(c + ix + s%sx*iy)
+        do while (k /= 0)
+          if (s%state(k) == state_free) then
+            tc = pair_time(s%d(k), s%d(i))
+            if (tc < never) then
+              ! against k's best pair (kept across its crossings), not only its entry
+              if (earlier(tc, ev_pair, i, s%p(k)%pt, ev_pair, s%p(k)%pj)) then
+                s%p(k)%pt = tc
+                s%p(k)%pj = i
+                s%p(k)%pcount = s%d(i)%coll
+                if (earlier(tc, ev_pair, i, s%p(k)%key, s%p(k)%kind, s%p(k)%partner)) &
+                     call set_event(s, k, tc, ev_pair, i)
+              end if
             end if
           end if
-        end if
-        k = s%d(k)%next
+          k = s%d(k)%next
+        end do
       end do
     end do
   end subroutine stick
@@ -1017,7 +978,7 @@ contains
     type(ed_t), intent(in) :: s
     real(dp), intent(in) :: t
     type(status_t), intent(inout) :: st
-    integer :: i, j, k, c, wi, wj
+    integer :: i, j, c, ix, iy, wi, wj
     real(dp) :: pi_(2), pj(2), d, sg, worst, ov, ri
     character(len=400) :: buf
     worst = 0; wi = 0; wj = 0
@@ -1029,18 +990,20 @@ contains
         worst = ov; wi = i; wj = 0
       end if
       c = cell_of(s, pi_(1), pi_(2))
-      do k = 0, 8
-        j = s%head(neighbour(s, c, k))
-        do while (j /= 0)
-          if (j > i) then
-            pj = ed_position(s, j, t)
-            d = sqrt(sum((pi_ - pj)**2))
-            sg = ri + s%d(j)%r
-            if (sg - d > s%guard_tol*sg .and. sg - d > worst) then
-              worst = sg - d; wi = i; wj = j
+      do iy = -1, 1
+        do ix = -1, 1
+          j = s%head(c + ix + s%sx*iy)
+          do while (j /= 0)
+            if (j > i) then
+              pj = ed_position(s, j, t)
+              d = sqrt(sum((pi_ - pj)**2))
+              sg = ri + s%d(j)%r
+              if (sg - d > s%guard_tol*sg .and. sg - d > worst) then
+                worst = sg - d; wi = i; wj = j
+              end if
             end if
-          end if
-          j = s%d(j)%next
+            j = s%d(j)%next
+          end do
         end do
       end do
     end do
