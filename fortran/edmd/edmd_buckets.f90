@@ -45,6 +45,9 @@ module edmd_buckets
     integer :: n = 0                          !< entries
     integer :: nb = 1                         !< buckets of an epoch
     integer :: cur = 0                        !< first possibly non-empty bucket
+    integer :: hint = 0                       !< likely next top after the last bq_top (or 0):
+                                              !< for prefetching only, never for the order
+    logical :: hints = .false.                !< keep the hint (else hint = 0)
     real(dp) :: t0 = 0, inv_w = 1             !< epoch start [time], 1 / bucket width
     real(dp) :: t_hi = -never                 !< epoch end: later entries overflow
     integer, allocatable :: head(:)           !< head(0:nb): first entry of each list
@@ -140,42 +143,60 @@ contains
     q%n = q%n - 1
   end subroutine bq_remove
 
-  !> Smallest (key, id) of list k (0 if empty).
-  pure integer function list_min(q, e, k) result(best)
+  !> Smallest (key, id) of list k (0 if empty), and the second smallest (0: none).
+  pure subroutine list_min(q, e, k, best, second)
     type(bq_t), intent(in) :: q
     type(bq_entry_t), intent(in) :: e(:)
     integer, intent(in) :: k
+    integer, intent(out) :: best, second
     integer :: i
-    real(dp) :: kb
+    real(dp) :: kb, k2
+    second = 0
+    k2 = never
     best = q%head(k)
     if (best == 0) return
     kb = e(best)%key
     i = e(best)%next
     do while (i /= 0)
       if (e(i)%key < kb .or. (e(i)%key == kb .and. i < best)) then
+        second = best
+        k2 = kb
         best = i
         kb = e(i)%key
+      else if (e(i)%key < k2 .or. second == 0) then
+        second = i
+        k2 = e(i)%key
       end if
       i = e(i)%next
     end do
-  end function list_min
+  end subroutine list_min
 
   !> Particle with the earliest event (0 if the queue is empty).
   integer function bq_top(q, e) result(top)
     type(bq_t), intent(inout) :: q
     type(bq_entry_t), intent(inout) :: e(:)
+    integer :: k
     top = 0
+    q%hint = 0
     if (q%n == 0) return
     do
       do while (q%cur < q%nb)
         if (q%head(q%cur) /= 0) then
-          top = list_min(q, e, q%cur)
+          call list_min(q, e, q%cur, top, q%hint)
+          if (.not. q%hints) then
+            q%hint = 0
+            return
+          end if
+          do k = q%cur + 1, min(q%cur + 8, q%nb - 1)   ! else the next bucket's first entry
+            if (q%hint /= 0) exit
+            q%hint = q%head(k)
+          end do
           return
         end if
         q%cur = q%cur + 1
       end do
       if (.not. new_epoch(q, e)) then            ! only entries without an event (key = never)
-        top = list_min(q, e, q%nb)
+        call list_min(q, e, q%nb, top, k)
         return
       end if
     end do

@@ -40,6 +40,7 @@ module edmd_core
   use edmd_heap, only: heap_t, heap_init, heap_set, heap_remove, heap_top
   use edmd_buckets, only: bq_t, bq_entry_t, bq_init, bq_set, bq_remove, bq_top
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
+  use, intrinsic :: iso_c_binding, only: c_int
   implicit none
   private
 
@@ -54,6 +55,9 @@ module edmd_core
   integer, parameter :: state_free = 0, state_stuck = 1, state_seed = 2
   integer, parameter :: cal_rescan = 0, cal_heap = 1, cal_buckets = 2
   real(dp), parameter :: never = huge(1.0_dp)
+  !> Prefetch the next event's disk from this many disks on: below, the records fit in the
+  !> L2 cache and the prefetch costs more than it hides (bench/RESULTS.md s. 22).
+  integer, parameter :: prefetch_min_n = 30000
 
   !> splitmix64: a small, portable, seeded generator (initial state only).
   type :: rng_t
@@ -114,6 +118,14 @@ module edmd_core
     integer, allocatable :: log_kind(:), log_i(:), log_j(:)
     integer(i8), allocatable :: log_no(:)
   end type ed_t
+
+  interface
+    !> Prefetch the cache line holding x (edmd_prefetch.c: __builtin_prefetch).
+    subroutine prefetch(x) bind(c, name='edmd_prefetch')
+      import :: c_int
+      integer(c_int), intent(in) :: x
+    end subroutine prefetch
+  end interface
 
 contains
 
@@ -426,7 +438,9 @@ contains
     s%p = bq_entry_t()                      ! no entries, no predictions
     select case (s%calendar)
     case (cal_heap); call heap_init(s%heap, s%n)
-    case (cal_buckets); call bq_init(s%bq, s%n)
+    case (cal_buckets)
+      call bq_init(s%bq, s%n)
+      s%bq%hints = s%n >= prefetch_min_n
     case default; return
     end select
     do i = 1, s%n
@@ -603,6 +617,18 @@ contains
     s%p(i)%pcount = pc
   end subroutine scan_cells
 
+  !> Start loading the record and calendar entry of the disk of the likely next event (the
+  !> calendar's hint, buckets only; 0: none). Only loads: the order of events does not depend
+  !> on the hint.
+  subroutine prefetch_next(s)
+    type(ed_t), intent(in) :: s
+    integer :: h
+    h = s%bq%hint
+    if (h == 0) return
+    call prefetch(s%d(h)%next)
+    call prefetch(s%p(h)%next)
+  end subroutine prefetch_next
+
   !> Earliest event of free disk i over walls, its cell edges and the disks
   !> of the 3 x 3 cells around it; into the calendar.
   subroutine predict(s, i)
@@ -714,6 +740,7 @@ contains
       if (s%calendar /= cal_rescan) then
         i = cal_top(s)
         if (i == 0) exit
+        if (s%calendar == cal_buckets) call prefetch_next(s)
         te = s%p(i)%key
         if (te >= t_target) exit
         k = s%p(i)%kind
