@@ -143,60 +143,70 @@ contains
     q%n = q%n - 1
   end subroutine bq_remove
 
-  !> Smallest (key, id) of list k (0 if empty), and the second smallest (0: none).
-  pure subroutine list_min(q, e, k, best, second)
+  !> Smallest (key, id) of list k (0 if empty).
+  pure integer function list_min(q, e, k) result(best)
     type(bq_t), intent(in) :: q
     type(bq_entry_t), intent(in) :: e(:)
     integer, intent(in) :: k
-    integer, intent(out) :: best, second
     integer :: i
-    real(dp) :: kb, k2
-    second = 0
-    k2 = never
+    real(dp) :: kb
     best = q%head(k)
     if (best == 0) return
     kb = e(best)%key
     i = e(best)%next
     do while (i /= 0)
       if (e(i)%key < kb .or. (e(i)%key == kb .and. i < best)) then
-        second = best
-        k2 = kb
         best = i
         kb = e(i)%key
-      else if (e(i)%key < k2 .or. second == 0) then
-        second = i
-        k2 = e(i)%key
       end if
       i = e(i)%next
     end do
-  end subroutine list_min
+  end function list_min
+
+  !> Likely next top after top (the first entry of bucket cur): the earliest other entry of
+  !> that bucket, else the first entry of one of the next 8 buckets (0: none). A guess for
+  !> prefetching (a later insertion may come first), never used for the order.
+  pure integer function next_hint(q, e, top) result(h)
+    type(bq_t), intent(in) :: q
+    type(bq_entry_t), intent(in) :: e(:)
+    integer, intent(in) :: top
+    integer :: i, k
+    h = 0
+    i = q%head(q%cur)
+    do while (i /= 0)
+      if (i /= top) then
+        if (h == 0) then
+          h = i
+        else if (e(i)%key < e(h)%key) then
+          h = i
+        end if
+      end if
+      i = e(i)%next
+    end do
+    do k = q%cur + 1, min(q%cur + 8, q%nb - 1)
+      if (h /= 0) return
+      h = q%head(k)
+    end do
+  end function next_hint
 
   !> Particle with the earliest event (0 if the queue is empty).
   integer function bq_top(q, e) result(top)
     type(bq_t), intent(inout) :: q
     type(bq_entry_t), intent(inout) :: e(:)
-    integer :: k
     top = 0
     q%hint = 0
     if (q%n == 0) return
     do
       do while (q%cur < q%nb)
         if (q%head(q%cur) /= 0) then
-          call list_min(q, e, q%cur, top, q%hint)
-          if (.not. q%hints) then
-            q%hint = 0
-            return
-          end if
-          do k = q%cur + 1, min(q%cur + 8, q%nb - 1)   ! else the next bucket's first entry
-            if (q%hint /= 0) exit
-            q%hint = q%head(k)
-          end do
+          top = list_min(q, e, q%cur)
+          if (q%hints) q%hint = next_hint(q, e, top)
           return
         end if
         q%cur = q%cur + 1
       end do
       if (.not. new_epoch(q, e)) then            ! only entries without an event (key = never)
-        call list_min(q, e, q%nb, top, k)
+        top = list_min(q, e, q%nb)
         return
       end if
     end do
