@@ -549,16 +549,24 @@ contains
     end if
   end subroutine wall_time
 
-  !> Earliest cell-crossing time and direction (1 x-, 2 x+, 3 y-, 4 y+) of free disk i.
-  pure subroutine cross_time(s, i, tx, d)
+  !> .true. if disk a in cell (cx, cy) moves towards a wall its cell touches.
+  pure logical function towards_wall(s, a, cx, cy)
     type(ed_t), intent(in) :: s
-    integer, intent(in) :: i
+    type(disk_t), intent(in) :: a
+    integer, intent(in) :: cx, cy
+    towards_wall = (a%vx < 0.0_dp .and. cx == 0) .or. (a%vx > 0.0_dp .and. cx == s%ncx - 1) &
+         .or. (a%vy < 0.0_dp .and. cy == 0) .or. (a%vy > 0.0_dp .and. cy == s%ncy - 1)
+  end function towards_wall
+
+  !> Earliest cell-crossing time and direction (1 x-, 2 x+, 3 y-, 4 y+) of free disk i in
+  !> cell (cx, cy).
+  pure subroutine cross_time(s, i, cx, cy, tx, d)
+    type(ed_t), intent(in) :: s
+    integer, intent(in) :: i, cx, cy
     real(dp), intent(out) :: tx
     integer, intent(out) :: d
-    integer :: cx, cy
     real(dp) :: t1
     associate (a => s%d(i))
-      call cell_xy(s, a%cell, cx, cy)
       tx = never
       d = 0
       if (a%vx > 0.0_dp .and. cx < s%ncx - 1) then
@@ -666,16 +674,23 @@ contains
   end subroutine predict_after_cross
 
   !> The calendar entry of disk i: the earliest of its wall, cell crossing and best pair.
+  !> The walls are only looked at from a cell on the border the disk moves towards (or
+  !> without a crossing): from any other cell, the crossing of the cell edge on the way to a
+  !> wall comes strictly first (the edge is >= one cell side > r_max from the wall), so the
+  !> entry is the same.
   subroutine choose(s, i)
     type(ed_t), intent(inout) :: s
     integer, intent(in) :: i
     real(dp) :: tb, tc
-    integer :: kb, pb, w
-    call wall_time(s%d(i), s%lx, s%ly, tb, pb)
-    kb = ev_wall
-    call cross_time(s, i, tc, w)
-    if (earlier(tc, ev_cell, w, tb, kb, pb)) then
-      tb = tc; kb = ev_cell; pb = w
+    integer :: kb, pb, w, cx, cy
+    call cell_xy(s, s%d(i)%cell, cx, cy)
+    call cross_time(s, i, cx, cy, tb, pb)
+    kb = ev_cell
+    if (tb >= never .or. towards_wall(s, s%d(i), cx, cy)) then
+      call wall_time(s%d(i), s%lx, s%ly, tc, w)
+      if (earlier(tc, ev_wall, w, tb, kb, pb)) then
+        tb = tc; kb = ev_wall; pb = w
+      end if
     end if
     if (s%p(i)%pj /= 0) then
       if (earlier(s%p(i)%pt, ev_pair, s%p(i)%pj, tb, kb, pb)) then
