@@ -24,7 +24,9 @@
 !> partner whose collision counter changed since the prediction is stale and is
 !> re-predicted when it reaches the top. 'buckets': a bucketed calendar queue
 !> (edmd_buckets), O(1) per event; 'heap': an indexed binary heap (edmd_heap),
-!> O(log N); both order ties by the disk id and pop the same sequence.
+!> O(log N); both order ties by the disk id and pop the same sequence. From
+!> prefetch_min_n disks on, the disk of the queue's likely next event is
+!> prefetched while the current one is processed (loads only, never the order).
 !> 'rescan': the seed's algorithm, every pair and wall re-examined at every
 !> event (O(N^2)); it yields the same physical events in the same order
 !> (tests, benchmarks).
