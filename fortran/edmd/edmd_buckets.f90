@@ -45,6 +45,9 @@ module edmd_buckets
     integer :: n = 0                          !< entries
     integer :: nb = 1                         !< buckets of an epoch
     integer :: cur = 0                        !< first possibly non-empty bucket
+    integer :: hint = 0                       !< likely next top after the last bq_top (or 0):
+                                              !< for prefetching only, never for the order
+    logical :: hints = .false.                !< keep the hint (else hint = 0)
     real(dp) :: t0 = 0, inv_w = 1             !< epoch start [time], 1 / bucket width
     real(dp) :: t_hi = -never                 !< epoch end: later entries overflow
     integer, allocatable :: head(:)           !< head(0:nb): first entry of each list
@@ -160,16 +163,44 @@ contains
     end do
   end function list_min
 
+  !> Likely next top after top (the first entry of bucket cur): the earliest other entry of
+  !> that bucket, else the first entry of one of the next 8 buckets (0: none). A guess for
+  !> prefetching (a later insertion may come first), never used for the order.
+  pure integer function next_hint(q, e, top) result(h)
+    type(bq_t), intent(in) :: q
+    type(bq_entry_t), intent(in) :: e(:)
+    integer, intent(in) :: top
+    integer :: i, k
+    h = 0
+    i = q%head(q%cur)
+    do while (i /= 0)
+      if (i /= top) then
+        if (h == 0) then
+          h = i
+        else if (e(i)%key < e(h)%key) then
+          h = i
+        end if
+      end if
+      i = e(i)%next
+    end do
+    do k = q%cur + 1, min(q%cur + 8, q%nb - 1)
+      if (h /= 0) return
+      h = q%head(k)
+    end do
+  end function next_hint
+
   !> Particle with the earliest event (0 if the queue is empty).
   integer function bq_top(q, e) result(top)
     type(bq_t), intent(inout) :: q
     type(bq_entry_t), intent(inout) :: e(:)
     top = 0
+    q%hint = 0
     if (q%n == 0) return
     do
       do while (q%cur < q%nb)
         if (q%head(q%cur) /= 0) then
           top = list_min(q, e, q%cur)
+          if (q%hints) q%hint = next_hint(q, e, top)
           return
         end if
         q%cur = q%cur + 1

@@ -24,7 +24,9 @@
 !> partner whose collision counter changed since the prediction is stale and is
 !> re-predicted when it reaches the top. 'buckets': a bucketed calendar queue
 !> (edmd_buckets), O(1) per event; 'heap': an indexed binary heap (edmd_heap),
-!> O(log N); both order ties by the disk id and pop the same sequence.
+!> O(log N); both order ties by the disk id and pop the same sequence. From
+!> prefetch_min_n disks on, the disk of the queue's likely next event is
+!> prefetched while the current one is processed (loads only, never the order).
 !> 'rescan': the seed's algorithm, every pair and wall re-examined at every
 !> event (O(N^2)); it yields the same physical events in the same order
 !> (tests, benchmarks).
@@ -41,6 +43,7 @@ module edmd_core
   use edmd_heap, only: heap_t, heap_init, heap_set, heap_remove, heap_top
   use edmd_buckets, only: bq_t, bq_entry_t, bq_init, bq_set, bq_remove, bq_top
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
+  use, intrinsic :: iso_c_binding, only: c_int
   implicit none
   private
 
@@ -55,6 +58,9 @@ module edmd_core
   integer, parameter :: state_free = 0, state_stuck = 1, state_seed = 2
   integer, parameter :: cal_rescan = 0, cal_heap = 1, cal_buckets = 2
   real(dp), parameter :: never = huge(1.0_dp)
+  !> Prefetch the next event's disk from this many disks on: below, the records fit in the
+  !> L2 cache and the prefetch costs more than it hides (bench/RESULTS.md s. 22).
+  integer, parameter :: prefetch_min_n = 30000
 
   !> splitmix64: a small, portable, seeded generator (initial state only).
   type :: rng_t
@@ -119,6 +125,14 @@ module edmd_core
     integer, allocatable :: log_kind(:), log_i(:), log_j(:)
     integer(i8), allocatable :: log_no(:)
   end type ed_t
+
+  interface
+    !> Prefetch the cache line holding x (edmd_prefetch.c: __builtin_prefetch).
+    subroutine prefetch(x) bind(c, name='edmd_prefetch')
+      import :: c_int
+      integer(c_int), intent(in) :: x
+    end subroutine prefetch
+  end interface
 
 contains
 
@@ -437,7 +451,9 @@ contains
     s%p = bq_entry_t()                      ! no entries, no predictions
     select case (s%calendar)
     case (cal_heap); call heap_init(s%heap, s%n)
-    case (cal_buckets); call bq_init(s%bq, s%n)
+    case (cal_buckets)
+      call bq_init(s%bq, s%n)
+      s%bq%hints = s%n >= prefetch_min_n
     case default; return
     end select
     do i = 1, s%n
@@ -546,16 +562,24 @@ contains
     end if
   end subroutine wall_time
 
-  !> Earliest cell-crossing time and direction (1 x-, 2 x+, 3 y-, 4 y+) of free disk i.
-  pure subroutine cross_time(s, i, tx, d)
+  !> .true. if disk a in cell (cx, cy) moves towards a wall its cell touches.
+  pure logical function towards_wall(s, a, cx, cy)
     type(ed_t), intent(in) :: s
-    integer, intent(in) :: i
+    type(disk_t), intent(in) :: a
+    integer, intent(in) :: cx, cy
+    towards_wall = (a%vx < 0.0_dp .and. cx == 0) .or. (a%vx > 0.0_dp .and. cx == s%ncx - 1) &
+         .or. (a%vy < 0.0_dp .and. cy == 0) .or. (a%vy > 0.0_dp .and. cy == s%ncy - 1)
+  end function towards_wall
+
+  !> Earliest cell-crossing time and direction (1 x-, 2 x+, 3 y-, 4 y+) of free disk i in
+  !> cell (cx, cy).
+  pure subroutine cross_time(s, i, cx, cy, tx, d)
+    type(ed_t), intent(in) :: s
+    integer, intent(in) :: i, cx, cy
     real(dp), intent(out) :: tx
     integer, intent(out) :: d
-    integer :: cx, cy
     real(dp) :: t1
     associate (a => s%d(i))
-      call cell_xy(s, a%cell, cx, cy)
       tx = never
       d = 0
       if (a%vx > 0.0_dp .and. cx < s%ncx - 1) then
@@ -614,6 +638,18 @@ contains
     s%p(i)%pcount = pc
   end subroutine scan_cells
 
+  !> Start loading the record and calendar entry of the disk of the likely next event (the
+  !> calendar's hint, buckets only; 0: none). Only loads: the order of events does not depend
+  !> on the hint.
+  subroutine prefetch_next(s)
+    type(ed_t), intent(in) :: s
+    integer :: h
+    h = s%bq%hint
+    if (h == 0) return
+    call prefetch(s%d(h)%next)
+    call prefetch(s%p(h)%next)
+  end subroutine prefetch_next
+
   !> Earliest event of free disk i over walls, its cell edges and the disks
   !> of the 3 x 3 cells around it; into the calendar.
   subroutine predict(s, i)
@@ -651,16 +687,23 @@ contains
   end subroutine predict_after_cross
 
   !> The calendar entry of disk i: the earliest of its wall, cell crossing and best pair.
+  !> The walls are only looked at from a cell on the border the disk moves towards (or
+  !> without a crossing): from any other cell, the crossing of the cell edge on the way to a
+  !> wall comes strictly first (the edge is >= one cell side > r_max from the wall), so the
+  !> entry is the same.
   subroutine choose(s, i)
     type(ed_t), intent(inout) :: s
     integer, intent(in) :: i
     real(dp) :: tb, tc
-    integer :: kb, pb, w
-    call wall_time(s%d(i), s%lx, s%ly, tb, pb)
-    kb = ev_wall
-    call cross_time(s, i, tc, w)
-    if (earlier(tc, ev_cell, w, tb, kb, pb)) then
-      tb = tc; kb = ev_cell; pb = w
+    integer :: kb, pb, w, cx, cy
+    call cell_xy(s, s%d(i)%cell, cx, cy)
+    call cross_time(s, i, cx, cy, tb, pb)
+    kb = ev_cell
+    if (tb >= never .or. towards_wall(s, s%d(i), cx, cy)) then
+      call wall_time(s%d(i), s%lx, s%ly, tc, w)
+      if (earlier(tc, ev_wall, w, tb, kb, pb)) then
+        tb = tc; kb = ev_wall; pb = w
+      end if
     end if
     if (s%p(i)%pj /= 0) then
       if (earlier(s%p(i)%pt, ev_pair, s%p(i)%pj, tb, kb, pb)) then
@@ -725,6 +768,7 @@ contains
       if (s%calendar /= cal_rescan) then
         i = cal_top(s)
         if (i == 0) exit
+        if (s%calendar == cal_buckets) call prefetch_next(s)
         te = s%p(i)%key
         if (te >= t_target) exit
         k = s%p(i)%kind
