@@ -13,7 +13,7 @@ module engine
   use parallel, only: init_threads, par_min_loop, my_share
   use neighbours, only: nlist_t, nlist_setup, nlist_refresh, nb_all_pairs
   use walls, only: wall_block, wall_energy, wall_chunk
-  use friction, only: gravity_force, viscous_friction, dry_friction
+  use friction, only: gravity_force, viscous_friction, dry_friction, friction_at_vn
   use integrators, only: estimate_velocity, finish_velocity, advance
   use model, only: int_stormer_verlet, int_velocity_verlet
   use observables, only: mean_distance, packing_fraction, kinetic_energy
@@ -307,10 +307,17 @@ contains
         s%fmag(lo:hi) = sqrt(s%fx(lo:hi)**2 + s%fy(lo:hi)**2)
       end if
       if (m%gravity_on) call gravity_force(mb, s%mass(lo:hi), m%big_g, s%fy(lo:hi))
-      if (m%dry_order > 0) call dry_friction(mb, s%nfac(lo:hi), s%s3(lo:hi), m%mu_s, m%mu_d, &
-           m%v_t, s%vx(lo:hi), s%vy(lo:hi), s%fx(lo:hi), s%fy(lo:hi))
-      if (m%viscous_on) call viscous_friction(mb, s%mass(lo:hi), m%gamma, s%vx(lo:hi), &
-           s%vy(lo:hi), s%fx(lo:hi), s%fy(lo:hi))
+      if (m%friction_implicit .and. s%has_previous) then
+        if (m%dry_order > 0 .or. m%viscous_on) call friction_at_vn(mb, s%mass(lo:hi), &
+             s%nfac(lo:hi), s%s3(lo:hi), m%dry_order > 0, m%mu_s, m%mu_d, m%v_t, &
+             merge(m%gamma, 0.0_dp, m%viscous_on), m%dt, s%vx(lo:hi), s%vy(lo:hi), &
+             s%fx(lo:hi), s%fy(lo:hi))
+      else
+        if (m%dry_order > 0) call dry_friction(mb, s%nfac(lo:hi), s%s3(lo:hi), m%mu_s, &
+             m%mu_d, m%v_t, s%vx(lo:hi), s%vy(lo:hi), s%fx(lo:hi), s%fy(lo:hi))
+        if (m%viscous_on) call viscous_friction(mb, s%mass(lo:hi), m%gamma, s%vx(lo:hi), &
+             s%vy(lo:hi), s%fx(lo:hi), s%fy(lo:hi))
+      end if
       nonfinite = 0
       do i = hi, lo, -1
         if (.not. (abs(s%fx(i)) <= huge(1.0_dp) .and. abs(s%fy(i)) <= huge(1.0_dp))) nonfinite = i
@@ -569,7 +576,7 @@ contains
       o_frm = sim%writing .and. due(sim%sc%frame_every, s%step, last)
       o_dst = sim%writing .and. due(sim%sc%distance_every, s%step, last)
       o_en = sim%writing .and. due(sim%sc%energy_every, s%step, last)
-      if (sim%need_velocity) call estimate_velocity(m%integrator, m%dt, s)
+      if (sim%need_velocity) call estimate_velocity(m%integrator, m%dt, s, m%friction_implicit)
       call sim_forces(sim, o_frm, st)
       if (st%code /= 0) return
       if (moving) then   ! Newton's third law: the particles' push, weight, drag

@@ -8,7 +8,7 @@ module friction
   implicit none
   private
 
-  public :: gravity_force, viscous_friction, dry_friction
+  public :: gravity_force, viscous_friction, dry_friction, friction_at_vn
 
 contains
 
@@ -53,5 +53,51 @@ contains
       fy(i) = hold*(fy(i) - c*vy(i))
     end do
   end subroutine dry_friction
+
+  !> Both frictions at the velocity v_n the Verlet scheme itself reports at this step
+  !> (&integration friction_velocity = 'implicit'), instead of the lagged estimate. On entry
+  !> vx, vy hold u = v_{n-1/2} and fx, fy hold F_T (every other force at step n).
+  !> Stick (dry friction, static law at the velocity level): when a friction force within
+  !> mu_s N can stop the particle over this step, |F_T + m u/h| <= mu_s N, it does: the total
+  !> force is -m u/h, so v_{n+1/2} = 0 (a particle at rest, u = 0, holds while |F_T| <= mu_s N,
+  !> the thesis' static rule). Slip: v_n = u + (h/2m)(F_T + F_f(v_n)) with
+  !> F_f(v) = -mu_d N v/(|v| + v_t) - gamma m v, solved in closed form: v_n is parallel to
+  !> w = u + (h/2m) F_T and |v_n| = x is the positive root of
+  !> b x^2 + (b v_t + a - |w|) x - |w| v_t = 0 (a = h mu_d N/(2m), b = 1 + h gamma/2), taken
+  !> in its cancellation-free form. The lagged estimate instead lets a slowly sliding particle's
+  !> friction flip sign from step to step, by an amount that grows with h. On exit vx, vy hold
+  !> v_n and fx, fy the total force. dry: dry friction on; gamma = 0: no viscous drag.
+  subroutine friction_at_vn(n, mass, nfac, s3, dry, mu_s, mu_d, v_t, gamma, h, vx, vy, fx, fy)
+    integer, intent(in) :: n
+    real(dp), intent(in) :: mass(n), nfac(n), s3(n), mu_s, mu_d, v_t, gamma, h
+    logical, intent(in) :: dry
+    real(dp), intent(inout) :: vx(n), vy(n), fx(n), fy(n)
+    integer :: i
+    real(dp) :: fn, wx, wy, w, a, b, bb, c, x, r, half, on, stopx, stopy, stick, rh
+    on = merge(1.0_dp, 0.0_dp, dry)
+    b = 1.0_dp + 0.5_dp*h*gamma
+    rh = 1.0_dp/h
+    do i = 1, n
+      half = 0.5_dp*h/mass(i)
+      fn = on*nfac(i)*s3(i)
+      stopx = -mass(i)*vx(i)*rh                ! the total force that stops it: v_{n+1/2} = 0
+      stopy = -mass(i)*vy(i)*rh
+      stick = on*merge(1.0_dp, 0.0_dp, (fx(i) - stopx)**2 + (fy(i) - stopy)**2 <= (mu_s*fn)**2)
+      wx = vx(i) + half*fx(i)
+      wy = vy(i) + half*fy(i)
+      w = sqrt(wx**2 + wy**2)
+      a = half*mu_d*fn
+      bb = b*v_t + a - w
+      c = w*v_t
+      r = sqrt(bb*bb + 4.0_dp*b*c)
+      x = merge(2.0_dp*c/(bb + r + tiny(1.0_dp)), (r - bb)/(2.0_dp*b), bb >= 0)
+      x = x/(w + tiny(1.0_dp))                 ! slip: v_n = x w_vec (x = |v_n|/|w|)
+      c = mu_d*fn/(x*w + v_t) + gamma*mass(i)
+      fx(i) = stick*stopx + (1 - stick)*(fx(i) - c*x*wx)
+      fy(i) = stick*stopy + (1 - stick)*(fy(i) - c*x*wy)
+      vx(i) = stick*0.5_dp*vx(i) + (1 - stick)*x*wx
+      vy(i) = stick*0.5_dp*vy(i) + (1 - stick)*x*wy
+    end do
+  end subroutine friction_at_vn
 
 end module friction

@@ -26,27 +26,35 @@ contains
 
   !> Before the forces: fx, fy still hold f_{n-1}. Below par_min_loop particles the loop
   !> runs without an OpenMP region (an inactive region still costs ~0.3 us: several per step).
-  subroutine estimate_velocity(method, h, s)
+  !> half: v_{n-1/2} only (friction then solved at v_n, friction_at_vn), not v_n ~ v_{n-1/2} +
+  !> h a_{n-1}/2.
+  subroutine estimate_velocity(method, h, s, half)
     integer, intent(in) :: method
     real(dp), intent(in) :: h
     type(state_t), intent(inout) :: s
+    logical, intent(in), optional :: half
     integer :: t, nt
+    real(dp) :: ka
     if (.not. s%has_previous) return       ! v_0 is in vx, vy
     if (method /= int_stormer_verlet .and. method /= int_velocity_verlet) return
+    ka = 0.5_dp*h
+    if (present(half)) then
+      if (half) ka = 0
+    end if
     if (s%n < par_min_loop) then
-      call estimate_range(method, h, s, 1, s%n)
+      call estimate_range(method, h, ka, s, 1, s%n)
       return
     end if
     !$omp parallel default(shared) private(t, nt)
     call my_share(s%n, t, nt)
-    call estimate_range(method, h, s, 1 + ((t - 1)*s%n)/nt, (t*s%n)/nt)
+    call estimate_range(method, h, ka, s, 1 + ((t - 1)*s%n)/nt, (t*s%n)/nt)
     !$omp end parallel
   end subroutine estimate_velocity
 
   !> Particles lo..hi of estimate_velocity.
-  subroutine estimate_range(method, h, s, lo, hi)
+  subroutine estimate_range(method, h, ka, s, lo, hi)
     integer, intent(in) :: method, lo, hi
-    real(dp), intent(in) :: h
+    real(dp), intent(in) :: h, ka   !< step; weight of a_{n-1} (h/2, or 0 for v_{n-1/2})
     type(state_t), intent(inout) :: s
     integer :: i
     real(dp) :: rh, c
@@ -54,13 +62,13 @@ contains
     select case (method)
     case (int_stormer_verlet)
       do i = lo, hi
-        c = 0.5_dp*h/s%mass(i)
+        c = ka/s%mass(i)
         s%vx(i) = (s%x(i) - s%xp(i))*rh + c*s%fx(i)
         s%vy(i) = (s%y(i) - s%yp(i))*rh + c*s%fy(i)
       end do
     case (int_velocity_verlet)
       do i = lo, hi
-        c = 0.5_dp*h/s%mass(i)
+        c = ka/s%mass(i)
         s%vx(i) = s%xp(i) + c*s%fx(i)   ! xp, yp hold v_{n-1/2} here
         s%vy(i) = s%yp(i) + c*s%fy(i)
       end do

@@ -49,6 +49,7 @@ module model
     integer :: dry_order = 1                  !< 0 none, 1 first, 2 second order torque
     logical :: gravity_on = .true.
     logical :: viscous_on = .false.
+    logical :: friction_implicit = .false.    !< friction at the scheme's own v_n (solved), not lagged
     real(dp) :: mu_s = 0, mu_d = 0, v_t = 0, gamma = 0
     ! neighbours and truncation
     integer :: neighbour = 0             !< nb_* of module neighbours
@@ -118,6 +119,7 @@ contains
     m%gravity_on = sc%gravity
     m%gamma = sc%viscous_gamma
     m%viscous_on = sc%viscous_gamma > 0.0_dp
+    m%friction_implicit = trim(sc%friction_velocity) == 'implicit'
     m%mu_s = sc%mu_static
     m%mu_d = sc%mu_dynamic
     m%v_t = sc%v_threshold

@@ -84,6 +84,7 @@ module scene
     integer :: tail_every = 100
     real(dp) :: tail_switch = -1.0_dp    !< width of the smooth near/far hand-over below r_cut [D1]
                                          !< (<0: 0 = sharp for 'frozen', 1 D1 for 'linear')
+    character(len=name_len) :: friction_velocity = 'lagged'  !< | 'implicit' (Verlet schemes)
     real(dp) :: target_rel_error = 0.0_dp  !< read by pyorch (bench table), ignored by the engine
     ! &protocol
     character(len=name_len) :: piston = 'prescribed'  !< 'prescribed' | 'fixed' | 'none'
@@ -137,7 +138,7 @@ contains
     character(len=name_len) :: pair_law, wall_law, dry_friction, tilt
     logical :: gravity
     real(dp) :: mu_static, mu_dynamic, v_threshold, viscous_gamma, min_distance
-    character(len=name_len) :: integrator, neighbour, truncation, tail
+    character(len=name_len) :: integrator, neighbour, truncation, tail, friction_velocity
     real(dp) :: dt, r_cut, skin, target_rel_error, tail_switch
     integer :: tail_every
     character(len=name_len) :: piston
@@ -157,7 +158,7 @@ contains
     namelist /physics/ pair_law, wall_law, gravity, dry_friction, mu_static, &
          mu_dynamic, v_threshold, viscous_gamma, min_distance, tilt
     namelist /integration/ integrator, neighbour, dt, r_cut, skin, truncation, tail, &
-         tail_every, tail_switch, target_rel_error
+         tail_every, tail_switch, friction_velocity, target_rel_error
     namelist /protocol/ piston, h_start, t_relax, relax_rate, h0, hf, phi_final, hf_reference, &
          piston_speed, t_hold, expand, t_final, t_end, piston_mass, piston_gamma, t_settle, &
          nudge, t_record, settle_speed, settle_ekin, settle_hold
@@ -189,7 +190,7 @@ contains
     integrator = sc%integrator; neighbour = sc%neighbour; dt = sc%dt
     r_cut = sc%r_cut; skin = sc%skin; truncation = sc%truncation; tail = sc%tail
     tail_every = sc%tail_every; target_rel_error = sc%target_rel_error
-    tail_switch = sc%tail_switch
+    tail_switch = sc%tail_switch; friction_velocity = sc%friction_velocity
     piston = sc%piston; h_start = sc%h_start; t_relax = sc%t_relax
     relax_rate = sc%relax_rate; h0 = sc%h0; hf = sc%hf; phi_final = sc%phi_final
     piston_speed = sc%piston_speed; t_hold = sc%t_hold; expand = sc%expand
@@ -223,7 +224,7 @@ contains
     sc%integrator = integrator; sc%neighbour = neighbour; sc%dt = dt
     sc%r_cut = r_cut; sc%skin = skin; sc%truncation = truncation; sc%tail = tail
     sc%tail_every = tail_every; sc%target_rel_error = target_rel_error
-    sc%tail_switch = tail_switch
+    sc%tail_switch = tail_switch; sc%friction_velocity = friction_velocity
     sc%piston = piston; sc%h_start = h_start; sc%t_relax = t_relax
     sc%relax_rate = relax_rate; sc%h0 = h0; sc%hf = hf; sc%phi_final = phi_final
     sc%piston_speed = piston_speed; sc%t_hold = t_hold; sc%expand = expand
@@ -879,6 +880,11 @@ contains
          [character(len=name_len) :: 'stormer_verlet', 'velocity_verlet', 'euler'])
     call choice('integration', 'neighbour', sc%neighbour, &
          [character(len=name_len) :: 'all_pairs', 'cells', 'verlet', 'thesis'])
+    call choice('integration', 'friction_velocity', sc%friction_velocity, &
+         [character(len=name_len) :: 'lagged', 'implicit'])
+    if (trim(sc%friction_velocity) == 'implicit' .and. trim(sc%integrator) == 'euler') &
+         call bad('integration', 'friction_velocity', "'implicit'", &
+         "needs integrator = 'stormer_verlet' or 'velocity_verlet' (allowed with euler: 'lagged')")
     call rpos('integration', 'dt', sc%dt, 1.0e-12_dp, 1.0_dp)
     call choice('integration', 'truncation', sc%truncation, &
          [character(len=name_len) :: 'plain', 'shifted_force'])
@@ -1292,6 +1298,7 @@ contains
     call ps('tail', sc%tail, '')
     call pi_('tail_every', sc%tail_every, '')
     call pr('tail_switch', sc%tail_switch, 'D1 (<0: 0 for frozen, 1 for linear)')
+    call ps('friction_velocity', sc%friction_velocity, '')
     call pr('target_rel_error', sc%target_rel_error, 'used by pyorch only')
     call emit('/')
     call emit('&protocol')

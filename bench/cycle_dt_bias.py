@@ -1,0 +1,123 @@
+"""The time step in the quasi-static regime of the standard cycle (issue #17 c): the F_max bias
+of a larger step, with the friction at the lagged or at the implicit velocity
+(``&integration friction_velocity``), against the same engine at dt = 2e-3 T with the implicit
+friction, seed by seed.
+
+The scene is runs/standard.nml up to its maximum compression (5.63 mm/s, 75 -> 20 D1: the
+relaxation and the whole compression, 2 669 T; expansion and final relaxation cut, which change
+nothing before the turnaround). F_max is the piston force at the turnaround [m1 g] (as in
+``pyorch bench``), D_hat the mean distance there [D1]. The far field is frozen and refreshed
+every 0.2 T at every dt (the interval in time is what its error depends on: section 25).
+
+    OMP_NUM_THREADS=1 .venv/bin/python bench/cycle_dt_bias.py --seeds 32 --workers 2
+        # -> bench/results/cycle_dt_bias_rows.csv, cycle_dt_bias.csv
+    OMP_NUM_THREADS=1 .venv/bin/python bench/cycle_dt_bias.py --seeds 32 --workers 2 \
+        --grid shipped --reuse bench/results/cycle_dt_bias_rows.csv   # + the shipped setting
+
+Unlike ``bench/dt_bias.py`` (compression at 1 D1/T, where the particles always slide) this
+regime holds most particles by static friction, and that is where the lagged friction velocity
+makes F_max depend on dt.
+"""
+from __future__ import annotations
+
+import argparse
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+import common
+from pyorch.bench import measure
+from pyorch.run import run
+from pyorch.scene import Scene
+
+REFERENCE = "implicit_dt0.002"
+TAIL_INTERVAL = 0.2    # far-field refresh interval [T]
+
+
+def setting(friction: str, dt: float, tail: str = "frozen",
+            interval: float = TAIL_INTERVAL) -> tuple[str, dict[str, Any]]:
+    """(label, scene overrides) of one setting: friction velocity, time step [T], far field
+    ('frozen' or 'linear') and its refresh interval [T]."""
+    over = {"integration.dt": dt, "integration.friction_velocity": friction,
+            "integration.tail": tail, "integration.tail_switch": -1.0,
+            "integration.tail_every": max(1, round(interval / dt)),
+            "output.piston_every": max(1, round(1.0 / dt))}
+    label = f"{friction}_dt{dt:g}"
+    if (tail, interval) != ("frozen", TAIL_INTERVAL):
+        label += f"_{tail}{interval:g}"
+    return label, over
+
+
+GRIDS = {"friction": [setting("implicit", 2e-3), setting("implicit", 8e-3),
+                      setting("lagged", 8e-3), setting("lagged", 2e-3)],
+         "shipped": [setting("implicit", 8e-3, "linear", 0.4)]}
+
+
+def compression_only(scene: Path) -> Scene:
+    """The standard cycle up to its turnaround, first and last frame only."""
+    return Scene.read(scene).with_overrides(
+        {"protocol.expand": False, "protocol.t_final": 0.0, "output.frame_every": 10**9,
+         "output.distance_every": 10**9, "output.checkpoint_every": 0})
+
+
+def one(base: Scene, label: str, over: dict[str, Any], seed: int, out: Path) -> dict[str, Any]:
+    """Run one (setting, seed); the row of its measurements (status on failure)."""
+    row: dict[str, Any] = {"label": label, "seed": seed, **over}
+    try:
+        r = run(base.with_overrides(dict(over, **{"particles.seed": seed})),
+                out / f"{label}_seed{seed}", progress=False, threads=1, overwrite=True)
+        row.update(measure(r))
+    except Exception as exc:  # noqa: BLE001 - a failed setting is a measured outcome
+        row["status"] = f"failed: {exc}"
+    return row
+
+
+def paired_bias(rows: pd.DataFrame, reference: str = REFERENCE) -> pd.DataFrame:
+    """Per setting: mean relative difference of F_max (and D_hat) from the reference of the
+    same seed, its standard error and 95 % interval (1.96 sem), in %."""
+    ok = rows[rows["status"].eq("completed")]
+    ref = ok[ok["label"].eq(reference)].set_index("seed")
+    out = []
+    for label, g in ok.groupby("label", sort=False):
+        g = g[g["seed"].isin(ref.index)]
+        b = (g["F_max"].to_numpy() / ref.loc[g["seed"], "F_max"].to_numpy() - 1) * 100
+        d = (g["D_hat"].to_numpy() / ref.loc[g["seed"], "D_hat"].to_numpy() - 1) * 100
+        sem = b.std(ddof=1) / np.sqrt(b.size) if b.size > 1 else np.nan
+        out.append({"label": label, "n_seeds": b.size, "F_max_mean": g["F_max"].mean(),
+                    "bias_F_max_pct": b.mean(), "sem_pct": sem,
+                    "lo95_pct": b.mean() - 1.96 * sem, "hi95_pct": b.mean() + 1.96 * sem,
+                    "bias_D_hat_pct": d.mean(), "steps": g["steps"].mean()})
+    return pd.DataFrame(out)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--seeds", type=int, default=32)
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--out", type=Path, default=Path("/tmp/cycle_dt_bias"))
+    ap.add_argument("--grid", choices=sorted(GRIDS), default="friction")
+    ap.add_argument("--reuse", type=Path, default=None,
+                    help="rows of an earlier run (e.g. the reference): not run again")
+    args = ap.parse_args()
+    base = compression_only(common.REPO / "runs" / "standard.nml")
+    kept = pd.read_csv(args.reuse) if args.reuse else pd.DataFrame(columns=["label", "seed"])
+    have = set(zip(kept["label"], kept["seed"]))
+    grid = GRIDS[args.grid]
+    jobs = [(base, lab, ov, s, args.out) for s in range(1, args.seeds + 1) for lab, ov in grid
+            if (lab, s) not in have]
+    with ProcessPoolExecutor(max_workers=args.workers) as pool:
+        new = pd.DataFrame(list(pool.map(one, *zip(*jobs)))) if jobs else pd.DataFrame()
+    rows = pd.concat([kept, new], ignore_index=True)
+    common.save_table(rows, "cycle_dt_bias_rows.csv")
+    table = paired_bias(rows)
+    common.save_table(table, "cycle_dt_bias.csv")
+    print(table.to_string(index=False, float_format=lambda v: f"{v:.3f}"))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
