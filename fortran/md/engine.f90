@@ -265,7 +265,8 @@ contains
     logical, intent(in) :: need_fmag
     real(dp), intent(out) :: f_piston
     integer, intent(out) :: outside, nonfinite
-    integer :: lo, hi, mb, i, nbad
+    integer :: lo, hi, mb, i
+    real(dp) :: bad
     associate (s => sim%s, m => sim%m)
       lo = 1 + (b - 1)*wall_chunk
       hi = min(s%n, b*wall_chunk)
@@ -285,12 +286,12 @@ contains
       if (m%viscous_on) call viscous_friction(mb, s%mass(lo:hi), m%gamma, s%vx(lo:hi), &
            s%vy(lo:hi), s%fx(lo:hi), s%fy(lo:hi))
       nonfinite = 0
-      nbad = 0
-      do i = lo, hi     ! counted first (vectorises: no .and.), searched only if any
-        nbad = nbad + merge(0, 1, abs(s%fx(i)) <= huge(1.0_dp)) + &
-             merge(0, 1, abs(s%fy(i)) <= huge(1.0_dp))
+      bad = 0
+      do i = lo, hi     ! flagged first (vectorises: no .and., no integers), searched only if any
+        bad = max(bad, merge(0.0_dp, 1.0_dp, abs(s%fx(i)) <= huge(1.0_dp)), &
+             merge(0.0_dp, 1.0_dp, abs(s%fy(i)) <= huge(1.0_dp)))
       end do
-      if (nbad > 0) then
+      if (bad > 0) then
         do i = hi, lo, -1
           if (.not. (abs(s%fx(i)) <= huge(1.0_dp) .and. abs(s%fy(i)) <= huge(1.0_dp))) &
                nonfinite = i
