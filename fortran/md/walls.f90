@@ -34,10 +34,11 @@ contains
       ! k w^-3.5, four walls (wall_block passes the piston column always). The side walls
       ! (1, 2) as k r^3 sqrt(r), r = 1/w, the facing pair sharing one division (1/w1 =
       ! w2/(w1 w2)); bottom and piston (3, 4) as k t^7, t = inv_sqrt(w): multiplies and adds
-      ! only. In one loop the square-root/division unit and the FMA units work side by side:
-      ! with -march=native 1.95x faster than all four walls through sqrt (4 sqrt + 2
-      ! divisions), 1.5x faster than all four through inv_sqrt; in a generic (SSE2) build as
-      ! fast as before, where inv_sqrt alone is 1.5x slower (bench/RESULTS.md section 24)
+      ! only. In one loop the square-root/division unit and the FMA units work side by side.
+      ! The law alone (micro-benchmark): 1.95x faster than all four walls through sqrt (4 sqrt
+      ! + 2 divisions) with -march=native, as fast in a generic SSE2 build, where all four
+      ! through inv_sqrt are 1.5x slower; in the step, all four through inv_sqrt would be 2 %
+      ! faster natively and 2.6 % slower generic (bench/RESULTS.md section 24)
       do i = 1, m
         q = 1.0_dp/(l(i, 1)*l(i, 2))
         r1 = l(i, 2)*q
@@ -110,7 +111,7 @@ contains
     nw = merge(4, 3, with_piston)   ! left, right, bottom (+ piston)
     lengths = [height, height, width, width]
     ! written so that NaN fails the test too; the forces of an outside particle are garbage,
-    ! but the engine stops on `outside` before using them. Counted first (a loop that
+    ! but the engine stops on `outside` before using them. Flagged first (a loop that
     ! vectorises), the first such particle searched only when there is one.
     out = 0
     do i = 1, m       ! 1 if any test fails (no .and., no integers: GCC would branch or not vectorise)
