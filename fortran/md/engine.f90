@@ -293,6 +293,7 @@ contains
     real(dp), intent(out) :: f_piston
     integer, intent(out) :: outside, nonfinite
     integer :: lo, hi, mb, i
+    real(dp) :: bad
     associate (s => sim%s, m => sim%m)
       lo = 1 + (b - 1)*wall_chunk
       hi = min(s%n, b*wall_chunk)
@@ -319,9 +320,17 @@ contains
              s%vy(lo:hi), s%fx(lo:hi), s%fy(lo:hi))
       end if
       nonfinite = 0
-      do i = hi, lo, -1
-        if (.not. (abs(s%fx(i)) <= huge(1.0_dp) .and. abs(s%fy(i)) <= huge(1.0_dp))) nonfinite = i
+      bad = 0
+      do i = lo, hi     ! flagged first (vectorises: no .and., no integers), searched only if any
+        bad = max(bad, merge(0.0_dp, 1.0_dp, abs(s%fx(i)) <= huge(1.0_dp)), &
+             merge(0.0_dp, 1.0_dp, abs(s%fy(i)) <= huge(1.0_dp)))
       end do
+      if (bad > 0) then
+        do i = hi, lo, -1
+          if (.not. (abs(s%fx(i)) <= huge(1.0_dp) .and. abs(s%fy(i)) <= huge(1.0_dp))) &
+               nonfinite = i
+        end do
+      end if
     end associate
   end subroutine body_block
 

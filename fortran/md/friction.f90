@@ -41,13 +41,17 @@ contains
     real(dp), intent(in) :: nfac(n), s3(n), mu_s, mu_d, v_t, vx(n), vy(n)
     real(dp), intent(inout) :: fx(n), fy(n)
     integer :: i
-    real(dp) :: fn, ft, v, c, hold
-    ! branch-free (the hold test as a 0/1 factor): the loop vectorises
+    real(dp) :: fn, fs, ft2, v, c, hold
+    ! branch-free (the hold test as a 0/1 factor): the loop vectorises (also in a generic
+    ! SSE2 build: written so, GCC does not branch). |F_T| <= mu_s N is tested on squares,
+    ! |F_T|^2 <= mu_s N |mu_s N| (false for mu_s N < 0, as before): one square root per
+    ! particle, |v|, which the dynamic law needs anyway
     do i = 1, n
       fn = nfac(i)*s3(i)
-      ft = sqrt(fx(i)**2 + fy(i)**2)
+      fs = mu_s*fn
+      ft2 = fx(i)**2 + fy(i)**2
       v = sqrt(vx(i)**2 + vy(i)**2)
-      hold = merge(0.0_dp, 1.0_dp, ft <= mu_s*fn .and. v < v_t)
+      hold = merge(0.0_dp, 1.0_dp, ft2 <= fs*abs(fs) .and. v < v_t)
       c = mu_d*fn/(v + v_t)
       fx(i) = hold*(fx(i) - c*vx(i))
       fy(i) = hold*(fy(i) - c*vy(i))

@@ -23,6 +23,7 @@ module pair_forces
   !> as one flat pair sequence (rows_pairs)
   real(dp), parameter :: long_row_pairs = 8
   integer, parameter :: kernel_dipole = 1, kernel_lj6 = 2, kernel_lj = 3
+  integer, parameter :: pair_chunk = 256   !< pairs per chunk of the flat pair loop
 
   !> Seed 000's steric law between r_m and the cut-off R: U = 4 U0 ((2/r)^2p - (2/r)^p),
   !> continued linearly below r_m (constant force |U'(r_m)|). Lengths in a, energies
@@ -474,10 +475,10 @@ contains
     integer, intent(in) :: start(n + 1), nbr(*), own(*)   ! contiguous (stride-1 index loads)
     real(dp), intent(inout) :: fx(n), fy(n), s3(n), sx(*), sy(*), ss(*)
     real(dp), intent(inout) :: r2low
-    integer, parameter :: chunk = 256
+    integer, parameter :: chunk = pair_chunk
     integer :: i, j, m, k, k0, nk, k_hi
     real(dp) :: low, rk2, s5, r3p, keep, keep3
-    real(dp) :: dxs(chunk), dys(chunk), r2s(chunk), cs(chunk), t3i(chunk)
+    real(dp) :: r2s(chunk), pw(chunk, 4)   ! per pair: x_i - x_j, y_i - y_j, force factor, r^-3
     low = r2low
     keep3 = merge(1.0_dp, 0.0_dp, with_r3)
     rk2 = huge(1.0_dp)
@@ -489,9 +490,9 @@ contains
         k = k0 + m - 1
         i = own(k)
         j = nbr(k)
-        dxs(m) = x(i) - x(j)
-        dys(m) = y(i) - y(j)
-        r2s(m) = dxs(m)*dxs(m) + dys(m)*dys(m)
+        pw(m, 1) = x(i) - x(j)
+        pw(m, 2) = y(i) - y(j)
+        r2s(m) = pw(m, 1)*pw(m, 1) + pw(m, 2)*pw(m, 2)
         low = min(low, r2s(m))
       end do
       if (kernel == kernel_dipole) then
@@ -499,14 +500,14 @@ contains
           keep = merge(1.0_dp, 0.0_dp, r2s(m) < rk2)
           if (sp%on) keep = near_weight(sp, r2s(m))   ! loop-invariant test (unswitched)
           call dipole_kernel(r2s(m), shift4, s5, r3p)
-          cs(m) = keep*s5        ! times k mu_i mu_j in chunk_sums (no gathers of mu, wsin here)
-          t3i(m) = keep*keep3*r3p   ! 0 without the friction sums (s3 then gets + 0)
+          pw(m, 3) = keep*s5        ! times k mu_i mu_j in chunk_sums (no gathers of mu, wsin here)
+          pw(m, 4) = keep*keep3*r3p   ! 0 without the friction sums (s3 then gets + 0)
         end do
       else
-        call lj_chunk(l, nk, r2s, cs)
+        call lj_chunk(l, nk, r2s, pw(:, 3))
       end if
       call chunk_sums(nk, own(k0:k0 + nk - 1), nbr(k0:k0 + nk - 1), hi_direct, &
-           kernel == kernel_dipole, cs, dxs, dys, t3i, fx, fy, s3, sx, sy, ss, mu, wsin, k_pair)
+           kernel == kernel_dipole, pw, fx, fy, s3, sx, sy, ss, mu, wsin, k_pair)
     end do
     r2low = low
   end subroutine rows_pairs
@@ -517,11 +518,14 @@ contains
   !> reaction on j directly (j <= hi_direct) or to the spill arrays. Dipole (scaled): the force
   !> factor is k mu_i mu_j cs, and s3(i) += wsin_j r3s, s3(j) += wsin_i r3s (mu_i and wsin_i
   !> loaded once per row; r3s = 0 without the friction sums). Otherwise (Lennard-Jones) the factor is cs itself.
-  subroutine chunk_sums(nk, own, nbr, hi_direct, scaled, cs, dxs, dys, r3s, fx, fy, s3, &
-       sx, sy, ss, mu, wsin, k_pair)
+  subroutine chunk_sums(nk, own, nbr, hi_direct, scaled, pw, fx, fy, s3, sx, sy, ss, mu, &
+       wsin, k_pair)
     integer, intent(in) :: nk, own(nk), nbr(nk), hi_direct
     logical, intent(in) :: scaled
-    real(dp), intent(in) :: cs(nk), dxs(nk), dys(nk), r3s(nk), mu(*), wsin(*), k_pair
+    !> per pair m: separations dx, dy (columns 1, 2), force factor cs (3), r^-3 r3s (4); one
+    !> array (one base register in the scalar loop, which otherwise reloads four from the stack)
+    real(dp), intent(in) :: pw(pair_chunk, 4)
+    real(dp), intent(in) :: mu(*), wsin(*), k_pair
     real(dp), intent(inout) :: fx(*), fy(*), s3(*), sx(*), sy(*), ss(*)
     integer :: m, i, j, ic
     real(dp) :: gx, gy, ax, ay, a3, c, ci, wi
@@ -542,20 +546,20 @@ contains
           wi = wsin(i)
           ax = 0; ay = 0; a3 = 0
         end if
-        c = ci*mu(j)*cs(m)
-        gx = c*dxs(m)
-        gy = c*dys(m)
+        c = ci*mu(j)*pw(m, 3)
+        gx = c*pw(m, 1)
+        gy = c*pw(m, 2)
         ax = ax + gx
         ay = ay + gy
-        a3 = a3 + wsin(j)*r3s(m)
+        a3 = a3 + wsin(j)*pw(m, 4)
         if (j <= hi_direct) then
           fx(j) = fx(j) - gx
           fy(j) = fy(j) - gy
-          s3(j) = s3(j) + wi*r3s(m)
+          s3(j) = s3(j) + wi*pw(m, 4)
         else
           sx(j) = sx(j) - gx
           sy(j) = sy(j) - gy
-          ss(j) = ss(j) + wi*r3s(m)
+          ss(j) = ss(j) + wi*pw(m, 4)
         end if
       end do
       s3(ic) = s3(ic) + a3
@@ -569,8 +573,8 @@ contains
           ic = i
           ax = 0; ay = 0
         end if
-        gx = cs(m)*dxs(m)
-        gy = cs(m)*dys(m)
+        gx = pw(m, 3)*pw(m, 1)
+        gy = pw(m, 3)*pw(m, 2)
         ax = ax + gx
         ay = ay + gy
         if (j <= hi_direct) then
