@@ -86,7 +86,7 @@ contains
       fn = on*nfac(i)*s3(i)
       stopx = -mass(i)*vx(i)*rh                ! the total force that stops it: v_{n+1/2} = 0
       stopy = -mass(i)*vy(i)*rh
-      stick = on*merge(1.0_dp, 0.0_dp, (fx(i) - stopx)**2 + (fy(i) - stopy)**2 <= (mu_s*fn)**2)
+      stick = on*merge(1.0_dp, 0.0_dp, (fx(i) - stopx)**2 + (fy(i) - stopy)**2 <= mu_s*fn*abs(mu_s*fn))
       wx = vx(i) + half*fx(i)
       wy = vy(i) + half*fy(i)
       w = sqrt(wx**2 + wy**2)
