@@ -10,9 +10,11 @@ bench/RESULTS.md section 4), with the 64-seed machinery of ``pyorch bench seeds`
 the round-off probe and the dt = 2e-3 row of section 4 are then not run again).
 Writes bench/results/dt_bias_rows.csv and dt_bias.csv; prints the bias table.
 
-``--tail-every K`` runs the settings with the frozen far field refreshed every K steps (the
-scene's &integration tail_every; 100 by default) and writes dt_bias_tail<K>*.csv. The labels do
-not name tail_every: give ``--reuse`` a table without rows of these labels (the references only).
+``--tail-every K`` runs the settings with the far field refreshed every K steps (the scene's
+&integration tail_every; 100 by default) and writes dt_bias_tail<K>*.csv; ``--tail linear``
+extrapolates it (``_linear`` in the names), ``--friction-velocity implicit`` solves the friction
+at v_n (``_implicit``). The labels name neither tail_every nor the friction: give ``--reuse`` a
+table without rows of these labels (the references only).
 """
 from __future__ import annotations
 
@@ -41,18 +43,24 @@ def main() -> int:
     ap.add_argument("--dt", type=float, nargs="+", default=list(DTS))
     ap.add_argument("--tail-every", type=int, default=None)
     ap.add_argument("--tail", choices=("frozen", "linear"), default="frozen")
+    ap.add_argument("--friction-velocity", choices=("lagged", "implicit"), default="lagged")
     ap.add_argument("--out", type=Path, default=Path("/tmp/dt_bias"))
     args = ap.parse_args()
     reuse = pd.read_csv(args.reuse) if args.reuse else None
     scene = common.REPO / "runs" / "bench_compression.nml"
     tag = "" if args.tail == "frozen" else "_linear"
+    over: dict[str, object] = {}
     if args.tail_every is not None:
+        tag += f"_tail{args.tail_every}"
+        over["integration.tail_every"] = args.tail_every
+    if args.friction_velocity != "lagged":
+        tag += f"_{args.friction_velocity}"
+        over["integration.friction_velocity"] = args.friction_velocity
+    if over:
         from pyorch.scene import Scene
 
-        tag += f"_tail{args.tail_every}"
         args.out.mkdir(parents=True, exist_ok=True)
-        scene = Scene.read(scene).with_overrides({"integration.tail_every": args.tail_every}) \
-            .write(args.out / f"bench_compression{tag}.nml")
+        scene = Scene.read(scene).with_overrides(over).write(args.out / f"bench_compression{tag}.nml")
     rows, table = trade_study(scene, settings(tuple(args.dt), args.tail), range(1, args.seeds + 1),
                               args.out, workers=args.workers, reuse=reuse, energy_probe_t=0.0)
     common.save_table(rows, f"dt_bias{tag}_rows.csv")

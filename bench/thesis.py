@@ -290,8 +290,10 @@ def bi_specs(cfg: Config) -> list[Spec]:
 
 
 def standard_spec() -> Spec:
-    return Spec("standard_563_s1", "runs/standard.nml",
-                {**COMPRESSION_ONLY, "output.piston_every": 50, "output.distance_every": 0})
+    dt = float(Scene.read(ROOT / "runs/standard.nml").get("integration", "dt"))   # [T]
+    return Spec("standard_563_s1", "runs/standard.nml",   # piston record every 0.1 T
+                {**COMPRESSION_ONLY, "output.piston_every": round(0.1 / dt),
+                 "output.distance_every": 0})
 
 
 def build_table(cfg: Config, dirs: Mapping[str, Path], order: float) -> pd.DataFrame:
