@@ -75,3 +75,29 @@ class Door:
 @pytest.fixture
 def door(api: Any) -> Callable[[Path], Door]:
     return lambda path: Door(api, path)
+
+
+def _pause_resume_identical(scene: Scene, full: Path, tmp: Path, names: tuple[str, ...],
+                            stop_at: int = 333) -> None:
+    """Write ``scene`` to ``tmp``, run it to ``stop_at`` (paused), resume it, and compare the
+    files ``names`` with those of the straight run in ``full``, byte for byte."""
+    import json
+    import subprocess
+
+    from pyorch.run import engine_executable, resume
+
+    part = tmp / "part"
+    p = subprocess.run([str(engine_executable()), str(scene.write(tmp / "s.nml")), "--out",
+                        str(part), "--quiet", "--stop-at", str(stop_at)],
+                       capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr
+    assert json.loads((part / "run.json").read_text())["status"].startswith("paused")
+    resume(part, progress=False)
+    for name in names:
+        assert (full / name).read_bytes() == (part / name).read_bytes(), name
+
+
+@pytest.fixture
+def pause_resume_identical() -> Callable[..., None]:
+    """The check that a paused and resumed run equals the straight run (see above)."""
+    return _pause_resume_identical

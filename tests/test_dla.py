@@ -5,7 +5,6 @@ the fractal dimension, the last-bounce option, pause/resume and refused input.""
 from __future__ import annotations
 
 import json
-import subprocess
 from pathlib import Path
 from typing import Any
 
@@ -14,7 +13,7 @@ import pytest
 
 from pyorch import SceneError
 from pyorch import dla
-from pyorch.run import engine_executable, resume, run
+from pyorch.run import run
 from pyorch.scene import Scene
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -246,21 +245,15 @@ def test_fractal_dimension_between_dla_and_ballistic(tmp_path: Path) -> None:
 
 
 # ------------------------------------------------------------------ runner: pause/resume, input
-def test_pause_and_resume_bit_identical(tmp_path: Path) -> None:
+def test_pause_and_resume_bit_identical(tmp_path: Path, pause_resume_identical) -> None:
     over = {"box.lx": 40.0, "box.ly": 40.0, "disks.count": 300, "disks.velocities": "maxwell",
             "run.tick": 0.5, "run.t_end": 3000.0, "output.frame_every": 40,
             "output.history_every": 4, "output.checkpoint_every": 100,
             "output.log_events": True}
     full = _run(tmp_path, "full", GROW, **over)
     sc = Scene.read(GROW).with_overrides(over)
-    part = tmp_path / "part"
-    p = subprocess.run([str(engine_executable()), str(sc.write(tmp_path / "s.nml")), "--out",
-                        str(part), "--quiet", "--stop-at", "333"], capture_output=True, text=True)
-    assert p.returncode == 0, p.stderr
-    assert json.loads((part / "run.json").read_text())["status"].startswith("paused")
-    resume(part, progress=False)
-    for name in ("frames.dat", "history.dat", "aggregate.dat", "events.dat"):
-        assert (full / name).read_bytes() == (part / name).read_bytes(), name
+    pause_resume_identical(sc, full, tmp_path, ("frames.dat", "history.dat", "aggregate.dat",
+                                                "events.dat"))
 
 
 @pytest.mark.parametrize("key, value, needle", [

@@ -17,7 +17,7 @@ import pandas as pd
 import pytest
 
 from pyorch import SceneError, dla
-from pyorch.run import engine_executable, resume, run
+from pyorch.run import engine_executable, run
 from pyorch.scene import Scene
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -150,19 +150,13 @@ def test_calendars_agree_with_carriers(tmp_path: Path) -> None:
             assert (a / name).read_bytes() == (ref / name).read_bytes(), (cal, name)
 
 
-def test_pause_and_resume_bit_identical_with_carriers(tmp_path: Path) -> None:
+def test_pause_and_resume_bit_identical_with_carriers(tmp_path: Path, pause_resume_identical) -> None:
     over = {"output.frame_every": 40, "output.history_every": 4,
             "output.checkpoint_every": 100, "output.log_events": True}
     full = _run(tmp_path, "full", **over)
     sc = Scene.read(CARRIER).with_overrides({**SMALL, **over})
-    part = tmp_path / "part"
-    p = subprocess.run([str(engine_executable()), str(sc.write(tmp_path / "s.nml")), "--out",
-                        str(part), "--quiet", "--stop-at", "333"], capture_output=True, text=True)
-    assert p.returncode == 0, p.stderr
-    assert json.loads((part / "run.json").read_text())["status"].startswith("paused")
-    resume(part, progress=False)
-    for name in ("frames.dat", "history.dat", "aggregate.dat", "events.dat"):
-        assert (full / name).read_bytes() == (part / name).read_bytes(), name
+    pause_resume_identical(sc, full, tmp_path, ("frames.dat", "history.dat", "aggregate.dat",
+                                                "events.dat"))
 
 
 def test_resolved_scene_writes_every_sticky_key(tmp_path: Path) -> None:
