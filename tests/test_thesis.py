@@ -47,7 +47,9 @@ def test_f_max_is_table_3_2(compression: Run) -> None:
     force_n = json.loads((compression.dir / "run.json").read_text())["units"]["force_N"]
     f_max = float(pis["F_piston"].max()) * force_n
     assert f_max == pytest.approx(15.26, rel=0.03)
-    assert float(pis.loc[pis["F_piston"].idxmax(), "H"]) == pytest.approx(20.0, abs=0.01)
+    # at maximum compression: the record's maximum may come a few T before the turnaround
+    # (the force fluctuates; 0.1 D1 = 3 T at this speed), never at another stage
+    assert float(pis.loc[pis["F_piston"].idxmax(), "H"]) == pytest.approx(20.0, abs=0.1)
 
 
 def test_mean_distance_is_table_3_1(compression: Run) -> None:

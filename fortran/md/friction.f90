@@ -77,10 +77,14 @@ contains
     logical, intent(in) :: dry
     real(dp), intent(inout) :: vx(n), vy(n), fx(n), fy(n)
     integer :: i
-    real(dp) :: fn, wx, wy, w, a, b, bb, c, x, r, half, on, stopx, stopy, stick, rh
+    real(dp) :: fn, wx, wy, w, a, b, ib, bb, c, q, vn, d, half, on, stopx, stopy, stick, rh
     on = merge(1.0_dp, 0.0_dp, dry)
     b = 1.0_dp + 0.5_dp*h*gamma
+    ib = 1.0_dp/b
     rh = 1.0_dp/h
+    ! branch-free (the loop vectorises): the positive root of b x^2 + bb x - c = 0 is
+    ! max(q/b, -c/q) with q = -(bb + sign(r, bb))/2, r = sqrt(bb^2 + 4 b c): the form without
+    ! cancellation for either sign of bb (the other expression is the negative root)
     do i = 1, n
       half = 0.5_dp*h/mass(i)
       fn = on*nfac(i)*s3(i)
@@ -93,14 +97,16 @@ contains
       a = half*mu_d*fn
       bb = b*v_t + a - w
       c = w*v_t
-      r = sqrt(bb*bb + 4.0_dp*b*c)
-      x = merge(2.0_dp*c/(bb + r + tiny(1.0_dp)), (r - bb)/(2.0_dp*b), bb >= 0)
-      x = x/(w + tiny(1.0_dp))                 ! slip: v_n = x w_vec (x = |v_n|/|w|)
-      c = mu_d*fn/(x*w + v_t) + gamma*mass(i)
-      fx(i) = stick*stopx + (1 - stick)*(fx(i) - c*x*wx)
-      fy(i) = stick*stopy + (1 - stick)*(fy(i) - c*x*wy)
-      vx(i) = stick*0.5_dp*vx(i) + (1 - stick)*x*wx
-      vy(i) = stick*0.5_dp*vy(i) + (1 - stick)*x*wy
+      q = -0.5_dp*(bb + sign(sqrt(bb*bb + 4.0_dp*b*c), bb))
+      vn = max(q*ib, -c/(q - tiny(1.0_dp)))     ! slip: |v_n|
+      w = max(w, 1.0e-280_dp)                   ! w = 0 gives v_n = 0 (v_t >= 1e-15: d finite)
+      d = 1.0_dp/(w*(vn + v_t))
+      q = vn*(vn + v_t)*d                       ! v_n = q w_vec
+      c = mu_d*fn*w*d + gamma*mass(i)           ! F_f = -c v_n
+      fx(i) = stick*stopx + (1 - stick)*(fx(i) - c*q*wx)
+      fy(i) = stick*stopy + (1 - stick)*(fy(i) - c*q*wy)
+      vx(i) = stick*0.5_dp*vx(i) + (1 - stick)*q*wx
+      vy(i) = stick*0.5_dp*vy(i) + (1 - stick)*q*wy
     end do
   end subroutine friction_at_vn
 
