@@ -54,7 +54,8 @@ def setting(friction: str, dt: float, tail: str = "frozen",
 GRIDS = {"friction": [setting("implicit", 2e-3), setting("implicit", 8e-3),
                       setting("lagged", 8e-3), setting("lagged", 2e-3)],
          "shipped": [setting("implicit", 8e-3, "linear", 0.4)],
-         "linear0.8": [setting("implicit", 8e-3, "linear", 0.8)]}
+         "linear0.8": [setting("implicit", 8e-3, "linear", 0.8)],
+         "certify": [setting("implicit", 2e-3), setting("implicit", 8e-3, "linear", 0.8)]}
 
 
 def compression_only(scene: Path) -> Scene:
