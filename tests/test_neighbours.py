@@ -181,3 +181,23 @@ def test_linear_far_field_with_switch_is_exact_at_a_refresh(door, make_scene):
     fx, fy, _ = forces_with(door, make_scene, "verlet", ov)
     scale = np.max(np.hypot(ref_x, ref_y))
     assert np.max(np.hypot(fx - ref_x, fy - ref_y)) < 1e-12 * scale
+
+
+
+@pytest.mark.parametrize("tail, width", [("linear", 1.0), ("frozen", 0.0)])
+def test_tail_switch_default_is_one_for_linear_and_sharp_for_frozen(door, make_scene, tail, width):
+    """tail_switch < 0 (the default) means 1 D1 for 'linear' and 0 (sharp) for 'frozen', as
+    the README says: the same forces, bit for bit, as the width given explicitly, 4 steps after
+    a refresh (where the far field is extrapolated or stale, so the width matters)."""
+    def forces(sw: float) -> np.ndarray:
+        d = door(make_scene("demo", dict(BOX, **{
+            "integration.neighbour": "verlet", "integration.r_cut": 4.0, "integration.tail": tail,
+            "integration.tail_every": 7, "integration.tail_switch": sw})))
+        d.advance(25)
+        fx, fy = d.forces()
+        return np.concatenate([fx, fy])
+
+    auto = forces(-1.0)
+    assert np.array_equal(auto, forces(width))
+    other = forces(1.5 - width)
+    assert np.max(np.abs(other - auto)) > 1e-6 * np.max(np.abs(auto))   # measured 2.8e-4, 5e-2

@@ -16,7 +16,7 @@ module pair_forces
 
   public :: dipole_kernel, pair_forces_all, pair_forces_list, pair_forces_far, pair_energy_all
   public :: lj_law_t, lj_law, lj_kernel, lj_energy
-  public :: split_t, split_of, near_weight
+  public :: split_t, split_of
 
   integer, parameter :: mode_all = 1, mode_list = 2
   !> Mean listed pairs per row from which dipole lists go row by row (rows_list) instead of
