@@ -11,7 +11,7 @@ module engine
   use initial, only: place_particles
   use pair_forces, only: pair_forces_all, pair_forces_list, pair_forces_far, pair_energy_all
   use parallel, only: init_threads, par_min_loop, my_share
-  use neighbours, only: nlist_t, nlist_setup, nlist_refresh, nb_all_pairs
+  use neighbours, only: nlist_t, nlist_setup, nlist_refresh, nb_all_pairs, nb_verlet
   use walls, only: wall_block, wall_energy, wall_chunk
   use friction, only: gravity_force, viscous_friction, dry_friction, friction_at_vn
   use integrators, only: estimate_velocity, finish_velocity, advance
@@ -93,6 +93,7 @@ contains
     end if
     if (sim%m%neighbour /= nb_all_pairs) then
       sim%nl%with_owner = .true.      ! the flat pair loop (pair_forces_list) needs own
+      sim%nl%with_ranges = .true.     ! and the long rows their ranges (verlet only)
       call nlist_setup(sim%nl, sim%m%neighbour, sim%m%r_cut, sim%m%skin, sim%m%width, &
            sim%m%height, sim%s%n)
     end if
@@ -181,8 +182,14 @@ contains
         if (mod(s%step, int(m%tail_every, i8)) == 0 .or. .not. s%tail_ready) call far_field(sim)
       end if
       call init_forces(sim, m%tail_frozen)
-      call pair_forces_list(s%n, s%x, s%y, s%mu, s%wsin, m%k_pair, m%r_cut**2, m%shift4, &
-           nl%check, r3, nl%start, nl%nbr, s%fx, s%fy, s%s3, r2min, own=nl%own, split=m%split)
+      if (allocated(nl%rstart) .and. nl%strategy == nb_verlet) then
+        call pair_forces_list(s%n, s%x, s%y, s%mu, s%wsin, m%k_pair, m%r_cut**2, m%shift4, &
+             nl%check, r3, nl%start, nl%nbr, s%fx, s%fy, s%s3, r2min, own=nl%own, &
+             split=m%split, rstart=nl%rstart, rlo=nl%rlo, rhi=nl%rhi)
+      else
+        call pair_forces_list(s%n, s%x, s%y, s%mu, s%wsin, m%k_pair, m%r_cut**2, m%shift4, &
+             nl%check, r3, nl%start, nl%nbr, s%fx, s%fy, s%s3, r2min, own=nl%own, split=m%split)
+      end if
       nl%evaluated = nl%evaluated + nl%pairs
     end associate
   end subroutine pair_pass

@@ -18,6 +18,14 @@ module neighbours
   public :: nb_all_pairs, nb_cells, nb_verlet, nb_thesis
 
   integer, parameter :: nb_all_pairs = 0, nb_cells = 1, nb_verlet = 2, nb_thesis = 3
+  !> Largest run of unlisted j kept inside one range (each costs a masked evaluation; a new
+  !> range costs a loop start and a partial block)
+  integer, parameter :: range_gap = 8
+  !> Cells per list radius along each side: cells of side >= rlist/cell_split, the stencil
+  !> +-cell_split cells (2: 25 cells of area rlist^2/4, 6.25 rlist^2 of candidates per
+  !> particle against 9 with cells of side rlist; the particles sorted by these cells make the
+  !> ranges of a row tighter)
+  integer, parameter :: cell_split = 2
 
   type :: nlist_t
     integer :: strategy = nb_all_pairs
@@ -26,13 +34,20 @@ module neighbours
     real(dp) :: rlist = 0       !< list radius r_c + skin [D1]
     logical :: check = .true.   !< skip listed pairs beyond r_c
     integer :: ncx = 1, ncy = 1 !< cell grid
-    real(dp) :: csx = 1, csy = 1  !< cell sizes (>= rlist) [D1]
+    real(dp) :: csx = 1, csy = 1  !< cell sizes (>= rlist/cell_split) [D1]
     integer, allocatable :: cell_start(:)  !< (ncx*ncy + 1) CSR offsets into cell_part
     integer, allocatable :: cell_part(:)   !< (n) particles ordered by cell
     integer, allocatable :: start(:)       !< (n + 1) CSR offsets into nbr
     integer, allocatable :: nbr(:)         !< neighbours j > i of each i
     logical :: with_owner = .false.        !< also fill own (flat pair loops)
     integer, allocatable :: own(:)         !< i of each listed pair (with_owner only)
+    !> also fill the ranges (verlet only): the listed j of row i, cut where two consecutive
+    !> ones are more than range_gap apart, as contiguous ranges rlo(r)..rhi(r),
+    !> r = rstart(i)..rstart(i+1)-1 (rows_ranges). A range also holds unlisted j; for the
+    !> Verlet rule they are beyond r_c until the next rebuild (a pair within r_c now was within
+    !> r_c + skin at the build, so listed), and the kernel's r_c test masks them out.
+    logical :: with_ranges = .false.
+    integer, allocatable :: rstart(:), rlo(:), rhi(:)
     real(dp), allocatable :: xref(:), yref(:)  !< positions at the last build (n)
     logical :: valid = .false.             !< a list exists for the current ordering
     integer(i8) :: builds = 0              !< number of list builds
@@ -52,8 +67,8 @@ contains
     if (strategy == nb_cells) nl%skin = 0
     nl%rlist = rc + nl%skin
     nl%check = strategy /= nb_thesis
-    nl%ncx = max(1, min(4096, int(width/nl%rlist)))
-    nl%ncy = max(1, min(4096, int(height/nl%rlist)))
+    nl%ncx = max(1, min(4096, int(cell_split*width/nl%rlist)))
+    nl%ncy = max(1, min(4096, int(cell_split*height/nl%rlist)))
     nl%csx = width/nl%ncx
     nl%csy = height/nl%ncy
     if (allocated(nl%cell_start)) deallocate(nl%cell_start, nl%cell_part, nl%start, nl%xref, nl%yref)
@@ -106,11 +121,13 @@ contains
     call nlist_build(nl, s%n, s%x, s%y)
   end subroutine nlist_refresh
 
-  !> own(k) = the row i of listed pair k (with_owner lists only; also after a restore).
+  !> own(k) = the row i of listed pair k (with_owner lists only), and the ranges (with_ranges,
+  !> verlet only): both follow from start and nbr, also after a restore.
   subroutine nlist_owners(nl, n)
     type(nlist_t), intent(inout) :: nl
     integer, intent(in) :: n
     integer :: i
+    if (nl%with_ranges .and. nl%strategy == nb_verlet) call nlist_ranges(nl, n)
     if (.not. nl%with_owner) return
     if (allocated(nl%own)) then
       if (size(nl%own) /= size(nl%nbr)) deallocate(nl%own)
@@ -120,6 +137,56 @@ contains
       nl%own(nl%start(i):nl%start(i + 1) - 1) = i
     end do
   end subroutine nlist_owners
+
+  !> The ranges of each row (see nlist_t): a row's listed j in increasing order (as nlist_build
+  !> writes them for particles sorted by cell) are cut where the gap exceeds range_gap; a row
+  !> out of order (never written so) is one range from its smallest to its largest j.
+  subroutine nlist_ranges(nl, n)
+    type(nlist_t), intent(inout) :: nl
+    integer, intent(in) :: n
+    integer :: i, k, nr, pass
+    logical :: sorted
+    if (allocated(nl%rstart)) then
+      if (size(nl%rstart) /= n + 1) deallocate(nl%rstart)
+    end if
+    if (.not. allocated(nl%rstart)) allocate(nl%rstart(n + 1))
+    do pass = 1, 2          ! count, then fill
+      nr = 0
+      do i = 1, n
+        if (pass == 1) nl%rstart(i) = nr + 1
+        if (nl%start(i + 1) == nl%start(i)) cycle
+        sorted = .true.
+        do k = nl%start(i) + 1, nl%start(i + 1) - 1
+          sorted = sorted .and. nl%nbr(k) > nl%nbr(k - 1)
+        end do
+        if (.not. sorted) then
+          nr = nr + 1
+          if (pass == 2) then
+            nl%rlo(nr) = minval(nl%nbr(nl%start(i):nl%start(i + 1) - 1))
+            nl%rhi(nr) = maxval(nl%nbr(nl%start(i):nl%start(i + 1) - 1))
+          end if
+          cycle
+        end if
+        nr = nr + 1
+        if (pass == 2) nl%rlo(nr) = nl%nbr(nl%start(i))
+        do k = nl%start(i) + 1, nl%start(i + 1) - 1
+          if (nl%nbr(k) - nl%nbr(k - 1) > range_gap + 1) then
+            if (pass == 2) nl%rhi(nr) = nl%nbr(k - 1)
+            nr = nr + 1
+            if (pass == 2) nl%rlo(nr) = nl%nbr(k)
+          end if
+        end do
+        if (pass == 2) nl%rhi(nr) = nl%nbr(nl%start(i + 1) - 1)
+      end do
+      if (pass == 1) then
+        nl%rstart(n + 1) = nr + 1
+        if (allocated(nl%rlo)) then
+          if (size(nl%rlo) < nr) deallocate(nl%rlo, nl%rhi)
+        end if
+        if (.not. allocated(nl%rlo)) allocate(nl%rlo(max(16, nr + nr/4)), nl%rhi(max(16, nr + nr/4)))
+      end if
+    end do
+  end subroutine nlist_ranges
 
   pure integer function cell_index(nl, xi, yi) result(c)
     type(nlist_t), intent(in) :: nl
@@ -208,8 +275,8 @@ contains
       c = cell_index(nl, x(i), y(i)) - 1
       ix = mod(c, nl%ncx)
       iy = c/nl%ncx
-      do jy = max(0, iy - 1), min(nl%ncy - 1, iy + 1)
-        do jx = max(0, ix - 1), min(nl%ncx - 1, ix + 1)
+      do jy = max(0, iy - cell_split), min(nl%ncy - 1, iy + cell_split)
+        do jx = max(0, ix - cell_split), min(nl%ncx - 1, ix + cell_split)
           c = 1 + jx + nl%ncx*jy
           do k = nl%cell_start(c), nl%cell_start(c + 1) - 1
             j = nl%cell_part(k)

@@ -19,10 +19,15 @@ module pair_forces
   public :: split_t, split_of
 
   integer, parameter :: mode_all = 1, mode_list = 2
-  !> Mean listed pairs per row from which dipole lists go row by row (rows_list) instead of
-  !> as one flat pair sequence (rows_pairs)
-  real(dp), parameter :: long_row_pairs = 8
+  !> Mean listed pairs per row from which dipole lists go by contiguous ranges of j (rows_ranges,
+  !> when the list has ranges) instead of as one flat pair sequence (rows_pairs)
+  real(dp), parameter :: long_row_pairs = 10
+  !> Lanes of the contiguous dipole loops (dipole_segment): the sums on i are kept in this many
+  !> fixed lanes (j = j0 + l - 1 goes to lane l), so the loop vectorises without reordering a
+  !> floating-point sum; the order depends on the lane count only, never on the machine
+  integer, parameter :: lanes = 4
   integer, parameter :: kernel_dipole = 1, kernel_lj6 = 2, kernel_lj = 3
+  integer, parameter :: side_none = 0, side_near = 1, side_far = 2   !< split weights (dipole_segment)
   integer, parameter :: pair_chunk = 256   !< pairs per chunk of the flat pair loop
 
   !> Seed 000's steric law between r_m and the cut-off R: U = 4 U0 ((2/r)^2p - (2/r)^p),
@@ -229,7 +234,7 @@ contains
   !> are skipped when check is set (the thesis variant r_c = r_v uses every listed pair);
   !> with a split (dipole), pairs are weighted by its near side S(r).
   subroutine pair_forces_list(n, x, y, mu, wsin, k_pair, rc2, shift4, check, with_r3, &
-       start, nbr, fx, fy, s3, r2min, law, own, split)
+       start, nbr, fx, fy, s3, r2min, law, own, split, rstart, rlo, rhi)
     integer, intent(in) :: n
     real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair
     real(dp), intent(in) :: rc2       !< squared cut-off [D1^2]
@@ -242,10 +247,18 @@ contains
     type(lj_law_t), intent(in), optional :: law   !< Lennard-Jones instead of the dipole law
     integer, intent(in), contiguous :: own(:)   !< the row i of each listed pair (nlist_t own)
     type(split_t), intent(in), optional :: split  !< smooth near/far hand-over (far field on)
+    !> the same list as contiguous ranges of j (nlist_t; dipole with check only): used when
+    !> the rows are long
+    integer, intent(in), optional, contiguous :: rstart(:), rlo(:), rhi(:)
     type(split_t) :: sp
     if (present(split)) sp = split
-    call threaded_pass(mode_list, kernel_of(law), law_of(law), sp, n, x, y, mu, wsin, k_pair, &
-         0.0_dp, rc2, shift4, check, with_r3, start, nbr, fx, fy, s3, r2min, own)
+    if (present(rstart) .and. check .and. .not. present(law)) then
+      call threaded_pass(mode_list, kernel_dipole, lj_law_t(), sp, n, x, y, mu, wsin, k_pair, &
+           0.0_dp, rc2, shift4, check, with_r3, start, nbr, fx, fy, s3, r2min, own, rstart, rlo, rhi)
+    else
+      call threaded_pass(mode_list, kernel_of(law), law_of(law), sp, n, x, y, mu, wsin, k_pair, &
+           0.0_dp, rc2, shift4, check, with_r3, start, nbr, fx, fy, s3, r2min, own)
+    end if
   end subroutine pair_forces_list
 
   pure integer function kernel_of(law) result(k)
@@ -293,170 +306,226 @@ contains
     real(dp), intent(inout) :: sx(*), sy(*), ss(*)
     real(dp), intent(inout) :: r2low   !< running minimum of r^2
     integer :: i
-    real(dp) :: fxi, fyi, s3i
+    integer, allocatable :: rs(:), rl(:), rh(:)
+    real(dp), allocatable :: rsum(:, :)
+    real(dp) :: fxi, fyi
+    if (i_hi < i_lo) return
+    if (kernel == kernel_dipole) then   ! row i is the one range i+1..n
+      allocate(rs(n + 1), rl(n), rh(n), rsum(3, i_lo:i_hi))
+      rsum = 0
+      do i = i_lo, i_hi + 1
+        rs(i) = i
+        if (i <= n) rl(i) = i + 1
+        if (i <= n) rh(i) = n
+      end do
+      call dipole_ranges(sp, merge(side_far, side_none, sp%on), i_lo, i_hi, 1, min(n, hi_direct), &
+           min(n, hi_direct), x, y, mu, wsin, k_pair, r2_min, huge(1.0_dp), 0.0_dp, with_r3, rs, rl, rh, &
+           fx, fy, s3, rsum, r2low)
+      if (hi_direct < n) call dipole_ranges(sp, merge(side_far, side_none, sp%on), i_lo, i_hi, &
+           hi_direct + 1, n, n, x, y, mu, wsin, k_pair, r2_min, huge(1.0_dp), 0.0_dp, with_r3, &
+           rs, rl, rh, sx, sy, ss, rsum, r2low)
+      call add_row_sums(i_lo, i_hi, with_r3, rsum, fx, fy, s3)
+      return
+    end if
     do i = i_lo, i_hi
-      fxi = 0; fyi = 0; s3i = 0
-      call row_segment(kernel, l, sp, i, i + 1, min(n, hi_direct), n, x, y, mu, wsin, k_pair, &
-           r2_min, with_r3, fx, fy, s3, fxi, fyi, s3i, r2low)
-      if (hi_direct < n) call row_segment(kernel, l, sp, i, max(i + 1, hi_direct + 1), n, n, &
-           x, y, mu, wsin, k_pair, r2_min, with_r3, sx, sy, ss, fxi, fyi, s3i, r2low)
+      fxi = 0; fyi = 0
+      call row_segment(l, i, i + 1, min(n, hi_direct), n, x, y, fx, fy, fxi, fyi, r2low)
+      if (hi_direct < n) call row_segment(l, i, max(i + 1, hi_direct + 1), n, n, x, y, sx, sy, &
+           fxi, fyi, r2low)
       fx(i) = fx(i) + fxi
       fy(i) = fy(i) + fyi
-      if (with_r3) s3(i) = s3(i) + s3i
     end do
   end subroutine rows_all
 
-  !> Pairs (i, j), j = j_lo..j_hi, of the triangle (contiguous j: vectorised).
-  !> The action on i is added to fxi, fyi, s3i, the reaction to ax, ay, a3(j).
-  !> One fused loop per law (the law chosen outside it); r^-3 sums for the dipole only.
-  !> Dipole pairs at r^2 < r2_min are masked out, and with a split (the far field) the others
-  !> weighted by its far side 1 - S(r).
-  subroutine row_segment(kernel, l, sp, i, j_lo, j_hi, n, x, y, mu, wsin, k_pair, r2_min, &
-       with_r3, ax, ay, a3, fxi, fyi, s3i, r2low)
-    integer, intent(in) :: kernel, i, j_lo, j_hi, n
+  !> Lennard-Jones pairs (i, j), j = j_lo..j_hi, of the triangle (contiguous j: vectorised),
+  !> in chunks: distances, the law's kernel, sums. The action on i is added to fxi, fyi, the
+  !> reaction to ax, ay(j).
+  subroutine row_segment(l, i, j_lo, j_hi, n, x, y, ax, ay, fxi, fyi, r2low)
+    integer, intent(in) :: i, j_lo, j_hi, n
     type(lj_law_t), intent(in) :: l
-    type(split_t), intent(in) :: sp
-    real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair, r2_min
-    logical, intent(in) :: with_r3
-    real(dp), intent(inout) :: ax(*), ay(*), a3(*)
-    real(dp), intent(inout) :: fxi, fyi, s3i, r2low
+    real(dp), intent(in) :: x(n), y(n)
+    real(dp), intent(inout) :: ax(*), ay(*)
+    real(dp), intent(inout) :: fxi, fyi, r2low
     integer, parameter :: chunk = 256
     integer :: j, j0, m, nk
-    real(dp) :: xi, yi, ci, wi, dx, dy, r2, s5, r3, c, keep, low, gx, gy, g3
+    real(dp) :: xi, yi, low, gx, gy
     real(dp) :: dxs(chunk), dys(chunk), r2s(chunk), cs(chunk)
     ! accumulate in locals: dummy arguments updated in the inner loop may
     ! alias the force arrays (no vectorisation) and false-share between threads
     low = r2low
-    gx = 0; gy = 0; g3 = 0
+    gx = 0; gy = 0
     xi = x(i); yi = y(i)
-    ci = k_pair*mu(i)
-    wi = wsin(i)
-    if (kernel == kernel_dipole) then
-      do j = j_lo, j_hi
-        dx = xi - x(j)
-        dy = yi - y(j)
-        r2 = dx*dx + dy*dy
-        low = min(low, r2)
-        keep = merge(1.0_dp, 0.0_dp, r2 >= r2_min)
-        if (sp%on) keep = 1.0_dp - near_weight(sp, r2)   ! loop-invariant test (unswitched)
-        call dipole_kernel(r2, 0.0_dp, s5, r3)
-        c = keep*ci*mu(j)*s5
-        gx = gx + c*dx
-        gy = gy + c*dy
-        ax(j) = ax(j) - c*dx
-        ay(j) = ay(j) - c*dy
-        if (with_r3) then
-          r3 = keep*r3
-          g3 = g3 + wsin(j)*r3
-          a3(j) = a3(j) + wi*r3
-        end if
+    do j0 = j_lo, j_hi, chunk
+      nk = min(chunk, j_hi - j0 + 1)
+      do m = 1, nk
+        dxs(m) = xi - x(j0 + m - 1)
+        dys(m) = yi - y(j0 + m - 1)
+        r2s(m) = dxs(m)*dxs(m) + dys(m)*dys(m)
+        low = min(low, r2s(m))
       end do
-    else                     ! Lennard-Jones in chunks: distances, the law's kernel, sums
-      do j0 = j_lo, j_hi, chunk
-        nk = min(chunk, j_hi - j0 + 1)
-        do m = 1, nk
-          dxs(m) = xi - x(j0 + m - 1)
-          dys(m) = yi - y(j0 + m - 1)
-          r2s(m) = dxs(m)*dxs(m) + dys(m)*dys(m)
-          low = min(low, r2s(m))
-        end do
-        call lj_chunk(l, nk, r2s, cs)
-        do m = 1, nk
-          j = j0 + m - 1
-          gx = gx + cs(m)*dxs(m)
-          gy = gy + cs(m)*dys(m)
-          ax(j) = ax(j) - cs(m)*dxs(m)
-          ay(j) = ay(j) - cs(m)*dys(m)
-        end do
+      call lj_chunk(l, nk, r2s, cs)
+      do m = 1, nk
+        j = j0 + m - 1
+        gx = gx + cs(m)*dxs(m)
+        gy = gy + cs(m)*dys(m)
+        ax(j) = ax(j) - cs(m)*dxs(m)
+        ay(j) = ay(j) - cs(m)*dys(m)
       end do
-    end if
+    end do
     fxi = fxi + gx
     fyi = fyi + gy
-    s3i = s3i + g3
     r2low = low
   end subroutine row_segment
 
-  !> Dipole rows i_lo..i_hi of a half neighbour list, row by row (for long rows: x_i, y_i,
-  !> mu_i, wsin_i are scalars of the row, not gathered as in rows_pairs). Two passes per
-  !> chunk: gather and evaluate (vectorisable), then accumulate on i and scatter on j
-  !> (reactions on j > hi_direct to the spill arrays, as in rows_all).
-  subroutine rows_list(sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, shift4, &
-       check, with_r3, start, nbr, fx, fy, s3, sx, sy, ss, r2low)
+  !> Dipole rows i_lo..i_hi of a half Verlet list given as contiguous ranges of j (nlist_t
+  !> rstart, rlo, rhi: the listed j of row i lie in rlo(r)..rhi(r), r = rstart(i)..rstart(i+1)-1,
+  !> together with unlisted j that are beyond r_c and are masked out; exact for the Verlet rule,
+  !> see neighbours). Reactions on j > hi_direct go to the spill arrays (see threaded_pass).
+  subroutine rows_ranges(sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, shift4, &
+       with_r3, rstart, rlo, rhi, fx, fy, s3, sx, sy, ss, r2low)
     type(split_t), intent(in) :: sp
     integer, intent(in) :: i_lo, i_hi, hi_direct, n
     real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair, rc2, shift4
-    logical, intent(in) :: check, with_r3
-    integer, intent(in) :: start(n + 1), nbr(*)
+    logical, intent(in) :: with_r3
+    integer, intent(in) :: rstart(n + 1), rlo(*), rhi(*)
     real(dp), intent(inout) :: fx(n), fy(n), s3(n)
     real(dp), intent(inout) :: sx(*), sy(*), ss(*)
     real(dp), intent(inout) :: r2low   !< running minimum of r^2
-    integer, parameter :: chunk = 256
-    integer :: i, j, m, k0, nk
-    logical :: direct
-    real(dp) :: xi, yi, ci, wi, fxi, fyi, s3i, r2, keep, low
-    real(dp) :: dxs(chunk), dys(chunk), cs(chunk), r3s(chunk)
-    low = r2low   ! local running minimum (see row_segment)
+    integer :: side
+    real(dp), allocatable :: rsum(:, :)
+    if (i_hi < i_lo) return
+    allocate(rsum(3, i_lo:i_hi))
+    rsum = 0
+    side = merge(side_near, side_none, sp%on)
+    call dipole_ranges(sp, side, i_lo, i_hi, 1, hi_direct, hi_direct, x, y, mu, wsin, k_pair, &
+         0.0_dp, rc2, shift4, with_r3, rstart, rlo, rhi, fx, fy, s3, rsum, r2low)
+    if (hi_direct < n) call dipole_ranges(sp, side, i_lo, i_hi, hi_direct + 1, n, n, x, y, mu, &
+         wsin, k_pair, 0.0_dp, rc2, shift4, with_r3, rstart, rlo, rhi, sx, sy, ss, rsum, r2low)
+    call add_row_sums(i_lo, i_hi, with_r3, rsum, fx, fy, s3)
+  end subroutine rows_ranges
+
+  !> The dipole kernel over contiguous ranges of j: rows i = i_lo..i_hi, ranges
+  !> r = rstart(i)..rstart(i+1)-1, pairs (i, j) for j in rlo(r)..rhi(r) clipped to
+  !> j_min..j_max (i outside every range). Pairs are masked by r2_lo <= r^2 < r2_hi, or
+  !> (side_near / side_far) weighted by the split's near side S(r) or far side 1 - S(r). Force
+  !> on i: k mu_i mu_j (s5 - shift4 r^-1) (r_i - r_j), summed per row in fixed lanes (j = j0 +
+  !> l - 1 of each block of lanes goes to lane l: the loop vectorises without reordering a
+  !> floating-point sum, and the order depends on the lane count only) and added to rsum(:, i)
+  !> (see add_row_sums); the reactions go to ax, ay, a3(j). Whole blocks of lanes run past the end of a
+  !> range (masked: exact zeros) while they stay <= j_pad, the last entry of ax, ay, a3 this
+  !> caller owns (<= n); the rest runs lane by lane. a3, s3 get exact zeros without with_r3.
+  !> r2low: running minimum of r^2 over the ranges.
+  subroutine dipole_ranges(sp, side, i_lo, i_hi, j_min, j_max, j_pad, x, y, mu, wsin, k_pair, &
+       r2_lo, r2_hi, shift4, with_r3, rstart, rlo, rhi, ax, ay, a3, rsum, r2low)
+    type(split_t), intent(in) :: sp
+    integer, intent(in) :: side, i_lo, i_hi, j_min, j_max, j_pad
+    ! explicit shapes (bounded by j_pad or i_hi): GCC does not vectorise the loop over
+    ! assumed-size (*) arrays
+    real(dp), intent(in) :: x(max(j_pad, i_hi)), y(max(j_pad, i_hi)), mu(max(j_pad, i_hi))
+    real(dp), intent(in) :: wsin(max(j_pad, i_hi)), k_pair, r2_lo, r2_hi, shift4
+    logical, intent(in) :: with_r3
+    integer, intent(in) :: rstart(i_hi + 1), rlo(*), rhi(*)
+    real(dp), intent(inout) :: ax(j_pad), ay(j_pad), a3(j_pad)
+    real(dp), intent(inout) :: rsum(3, i_lo:i_hi)   !< per row: the action on i (x, y, r^-3 sum)
+    real(dp), intent(inout) :: r2low
+    integer :: i, r, j, j0, j_lo, j_hi, l, off, k
+    !> on(l + off): 1 for the lanes of a block up to the range's end, 0 past it
+    real(dp), parameter :: on(2*lanes - 1) = [(merge(1.0_dp, 0.0_dp, k <= lanes), k = 1, 2*lanes - 1)]
+    real(dp) :: xi, yi, ci, wi, dx, dy, r2, c, r3, keep3, wa, wb, low
+    real(dp) :: gx(lanes), gy(lanes), g3(lanes)
+    keep3 = merge(1.0_dp, 0.0_dp, with_r3)
+    ! the weight wa + wb S(r) of lane_pair (worked out here: a test on side in the loop stops
+    ! it vectorising)
+    wa = 1; wb = 0
+    if (side == side_near) then
+      wa = 0; wb = 1
+    else if (side == side_far) then
+      wa = 1; wb = -1
+    end if
+    low = r2low
     do i = i_lo, i_hi
       xi = x(i); yi = y(i)
       ci = k_pair*mu(i)
       wi = wsin(i)
-      fxi = 0; fyi = 0; s3i = 0
-      do k0 = start(i), start(i + 1) - 1, chunk
-        nk = min(chunk, start(i + 1) - k0)
-        do m = 1, nk
-          j = nbr(k0 + m - 1)
-          dxs(m) = xi - x(j)
-          dys(m) = yi - y(j)
-          r2 = dxs(m)*dxs(m) + dys(m)*dys(m)
-          low = min(low, r2)
-          keep = 1
-          if (check) keep = merge(1.0_dp, 0.0_dp, r2 < rc2)
-          if (sp%on) keep = near_weight(sp, r2)
-          call dipole_kernel(r2, shift4, cs(m), r3s(m))
-          cs(m) = keep*ci*mu(j)*cs(m)
-          r3s(m) = keep*r3s(m)
+      gx = 0; gy = 0; g3 = 0
+      do r = rstart(i), rstart(i + 1) - 1
+        j_lo = max(rlo(r), j_min)
+        j_hi = min(rhi(r), j_max)
+        j0 = j_lo
+        do while (j0 <= j_hi .and. j0 + lanes - 1 <= j_pad)   ! whole blocks (vectorised)
+          off = lanes - min(lanes, j_hi - j0 + 1)               ! lanes past j_hi are off
+          do l = 1, lanes
+            j = j0 + l - 1
+            dx = xi - x(j)
+            dy = yi - y(j)
+            call lane_pair(sp, wa, wb, on(l + off), r2_lo, r2_hi, shift4, dx, dy, r2, c, r3)
+            low = min(low, r2)
+            c = ci*mu(j)*c
+            r3 = keep3*r3
+            gx(l) = gx(l) + c*dx
+            gy(l) = gy(l) + c*dy
+            g3(l) = g3(l) + wsin(j)*r3
+            ax(j) = ax(j) - c*dx
+            ay(j) = ay(j) - c*dy
+            a3(j) = a3(j) + wi*r3
+          end do
+          j0 = j0 + lanes
         end do
-        direct = hi_direct >= n
-        if (.not. direct) direct = maxval(nbr(k0:k0 + nk - 1)) <= hi_direct
-        if (direct) then   ! the usual case: every j is ours
-          do m = 1, nk
-            j = nbr(k0 + m - 1)
-            fxi = fxi + cs(m)*dxs(m)
-            fyi = fyi + cs(m)*dys(m)
-            fx(j) = fx(j) - cs(m)*dxs(m)
-            fy(j) = fy(j) - cs(m)*dys(m)
-          end do
-          if (with_r3) then
-            do m = 1, nk
-              j = nbr(k0 + m - 1)
-              s3i = s3i + wsin(j)*r3s(m)
-              s3(j) = s3(j) + wi*r3s(m)
-            end do
-          end if
-        else                          ! rows next to a later thread's block
-          do m = 1, nk
-            j = nbr(k0 + m - 1)
-            fxi = fxi + cs(m)*dxs(m)
-            fyi = fyi + cs(m)*dys(m)
-            if (with_r3) s3i = s3i + wsin(j)*r3s(m)
-            if (j <= hi_direct) then
-              fx(j) = fx(j) - cs(m)*dxs(m)
-              fy(j) = fy(j) - cs(m)*dys(m)
-              if (with_r3) s3(j) = s3(j) + wi*r3s(m)
-            else
-              sx(j) = sx(j) - cs(m)*dxs(m)
-              sy(j) = sy(j) - cs(m)*dys(m)
-              if (with_r3) ss(j) = ss(j) + wi*r3s(m)
-            end if
-          end do
-        end if
+        do j = j0, j_hi                                        ! the rest (< lanes)
+          l = j - j0 + 1
+          dx = xi - x(j)
+          dy = yi - y(j)
+          call lane_pair(sp, wa, wb, 1.0_dp, r2_lo, r2_hi, shift4, dx, dy, r2, c, r3)
+          low = min(low, r2)
+          c = ci*mu(j)*c
+          r3 = keep3*r3
+          gx(l) = gx(l) + c*dx
+          gy(l) = gy(l) + c*dy
+          g3(l) = g3(l) + wsin(j)*r3
+          ax(j) = ax(j) - c*dx
+          ay(j) = ay(j) - c*dy
+          a3(j) = a3(j) + wi*r3
+        end do
       end do
-      fx(i) = fx(i) + fxi
-      fy(i) = fy(i) + fyi
-      if (with_r3) s3(i) = s3(i) + s3i
+      rsum(1, i) = rsum(1, i) + sum(gx)
+      rsum(2, i) = rsum(2, i) + sum(gy)
+      rsum(3, i) = rsum(3, i) + sum(g3)
     end do
     r2low = low
-  end subroutine rows_list
+  end subroutine dipole_ranges
+
+  !> Add the row sums of dipole_ranges to the rows' own forces.
+  subroutine add_row_sums(i_lo, i_hi, with_r3, rsum, fx, fy, s3)
+    integer, intent(in) :: i_lo, i_hi
+    logical, intent(in) :: with_r3
+    real(dp), intent(in) :: rsum(3, i_lo:i_hi)
+    real(dp), intent(inout) :: fx(*), fy(*), s3(*)
+    integer :: i
+    do i = i_lo, i_hi
+      fx(i) = fx(i) + rsum(1, i)
+      fy(i) = fy(i) + rsum(2, i)
+      if (with_r3) s3(i) = s3(i) + rsum(3, i)
+    end do
+  end subroutine add_row_sums
+
+  !> One lane of dipole_segment: r2 = dx^2 + dy^2 (huge(1.0) in a lane that is off, so that
+  !> it leaves the running minimum alone) and the masked and weighted kernel: force factor c
+  !> (times k mu_i mu_j) and r^-3 r3, both exactly 0 in a lane that is off or out of the mask.
+  !> The weight is wa + wb S(r): 1 (wa = 1, wb = 0), S (0, 1) or 1 - S (1, -1).
+  pure elemental subroutine lane_pair(sp, wa, wb, lane, r2_lo, r2_hi, shift4, dx, dy, r2, c, r3)
+    type(split_t), intent(in) :: sp
+    real(dp), intent(in) :: wa, wb, lane, r2_lo, r2_hi, shift4, dx, dy
+    real(dp), intent(out) :: r2, c, r3
+    real(dp) :: keep, s5, d2
+    d2 = dx*dx + dy*dy
+    keep = merge(1.0_dp, 0.0_dp, d2 >= r2_lo)*merge(1.0_dp, 0.0_dp, d2 < r2_hi)*lane
+    keep = keep*(wa + wb*near_weight(sp, d2))
+    r2 = d2 + (1.0_dp - lane)*huge(1.0_dp)
+    ! a lane that is off may hold any particle, even one at distance 0: keep the kernel finite
+    call dipole_kernel(max(d2, tiny(1.0_dp)), shift4, s5, r3)
+    c = keep*s5
+    r3 = keep*r3
+  end subroutine lane_pair
 
   !> Rows i_lo..i_hi of a half list taken as one flat sequence of pairs (own(k) = the row i of
   !> pair k): chunks of 256 pairs whatever the row lengths (a row holds ~5 pairs at the
@@ -599,7 +668,7 @@ contains
   !> spills are added in thread order and reset to zero. The result does not
   !> depend on scheduling, and on the thread count only through round-off.
   subroutine threaded_pass(mode, kernel, l, sp, n, x, y, mu, wsin, k_pair, r2_min, rc2, &
-       shift4, check, with_r3, start, nbr, fx, fy, s3, r2low, own)
+       shift4, check, with_r3, start, nbr, fx, fy, s3, r2low, own, rstart, rlo, rhi)
     !$ use omp_lib, only: omp_get_max_threads, omp_get_thread_num
     integer, intent(in) :: mode, kernel, n
     type(lj_law_t), intent(in) :: l
@@ -610,6 +679,7 @@ contains
     real(dp), intent(inout) :: fx(n), fy(n), s3(n)
     real(dp), intent(out) :: r2low
     integer, intent(in), optional, contiguous :: own(:)   !< row of each listed pair (lists only)
+    integer, intent(in), optional, contiguous :: rstart(:), rlo(:), rhi(:)   !< the list's ranges
     real(dp) :: low(64)
     integer :: nt, t, lo, hi, i, u
     integer :: bound(0:64)
@@ -622,10 +692,9 @@ contains
     else
       work = real(start(n + 1) - 1, dp)
     end if
-    ! dipole lists: row by row when rows are long, the flat pair sequence when short (measured
-    ! on this machine, bench/RESULTS.md section 18: flat 1.24x faster at 3.8 pairs per row,
-    ! row by row 1.1x faster at 15 and more)
-    long_rows = work >= long_row_pairs*real(max(1, n), dp)
+    ! dipole lists: by ranges when rows are long, the flat pair sequence when short
+    ! (bench/RESULTS.md section 26)
+    long_rows = work >= long_row_pairs*real(max(1, n), dp) .and. present(rstart)
     !$ if (work >= 5.0e4_dp) nt = min(omp_get_max_threads(), 64)
     r2low = huge(1.0_dp)
     if (nt == 1) then
@@ -677,8 +746,8 @@ contains
         call rows_all(kernel, l, sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, r2_min, &
              with_r3, ax, ay, a3, bx, by, b3, lw)
       else if (kernel == kernel_dipole .and. long_rows) then
-        call rows_list(sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, &
-             shift4, check, with_r3, start, nbr, ax, ay, a3, bx, by, b3, lw)
+        call rows_ranges(sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, shift4, &
+             with_r3, rstart, rlo, rhi, ax, ay, a3, bx, by, b3, lw)
       else
         call rows_pairs(kernel, l, sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, &
              shift4, check, with_r3, start, nbr, own, ax, ay, a3, bx, by, b3, lw)
