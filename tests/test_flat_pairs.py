@@ -1,8 +1,9 @@
 """The dipole list kernel on short rows (issue #17): the pairs of a half Verlet list taken as one
-flat sequence in chunks (rows_pairs) when the list holds < 10 pairs per row, as contiguous
-ranges of j (rows_ranges) otherwise. The flat path gives the O(N^2) forces (the frozen far field
-refreshed every step completes a short list to all pairs), serially and on the threads (the threaded pass with
-its spill buffers starts at 5e4 listed pairs), and the threads change only round-off."""
+flat sequence in chunks (rows_pairs) when the list holds < 8 pairs per row (row by row from 8,
+as contiguous ranges of j from 10: tests/test_neighbours.py). The flat path gives the O(N^2)
+forces (the frozen far field refreshed every step completes a short list to all pairs),
+serially and on the threads (the threaded pass with its spill buffers starts at 5e4 listed
+pairs), and the threads change only round-off."""
 from __future__ import annotations
 
 import math
@@ -44,7 +45,7 @@ def test_flat_list_plus_exact_tail_equals_all_pairs(door, make_scene, api, n, si
     fx, fy = forces(door, make_scene, dict(over, **{"integration.tail": "frozen",
                                                     "integration.tail_every": 1}))
     pairs = list_shape(api)
-    assert pairs < 10 * n           # the flat path (< 10 listed pairs per row)
+    assert pairs < 8 * n            # the flat path (< 8 listed pairs per row)
     assert (pairs >= 5e4) == (n == N_BIG)
     scale = np.max(np.hypot(ref_x, ref_y))
     assert np.max(np.hypot(fx - ref_x, fy - ref_y)) < 1e-12 * scale

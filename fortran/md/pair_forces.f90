@@ -19,9 +19,10 @@ module pair_forces
   public :: split_t, split_of
 
   integer, parameter :: mode_all = 1, mode_list = 2
-  !> Mean listed pairs per row from which dipole lists go by contiguous ranges of j (rows_ranges,
-  !> when the list has ranges) instead of as one flat pair sequence (rows_pairs)
-  real(dp), parameter :: long_row_pairs = 10
+  !> Mean listed pairs per row from which dipole lists go row by row (rows_list) instead of as
+  !> one flat pair sequence (rows_pairs), and from which they go by contiguous ranges of j
+  !> (rows_ranges, when the list has ranges); bench/RESULTS.md section 26
+  real(dp), parameter :: mid_row_pairs = 8, long_row_pairs = 10
   !> Lanes of the contiguous dipole loops (dipole_segment): the sums on i are kept in this many
   !> fixed lanes (j = j0 + l - 1 goes to lane l), so the loop vectorises without reordering a
   !> floating-point sum; the order depends on the lane count only, never on the machine
@@ -377,6 +378,88 @@ contains
     r2low = low
   end subroutine row_segment
 
+  !> Dipole rows i_lo..i_hi of a half neighbour list, row by row (for long rows: x_i, y_i,
+  !> mu_i, wsin_i are scalars of the row, not gathered as in rows_pairs). Two passes per
+  !> chunk: gather and evaluate (vectorisable), then accumulate on i and scatter on j
+  !> (reactions on j > hi_direct to the spill arrays, as in rows_all).
+  subroutine rows_list(sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, shift4, &
+       check, with_r3, start, nbr, fx, fy, s3, sx, sy, ss, r2low)
+    type(split_t), intent(in) :: sp
+    integer, intent(in) :: i_lo, i_hi, hi_direct, n
+    real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair, rc2, shift4
+    logical, intent(in) :: check, with_r3
+    integer, intent(in) :: start(n + 1), nbr(*)
+    real(dp), intent(inout) :: fx(n), fy(n), s3(n)
+    real(dp), intent(inout) :: sx(*), sy(*), ss(*)
+    real(dp), intent(inout) :: r2low   !< running minimum of r^2
+    integer, parameter :: chunk = 256
+    integer :: i, j, m, k0, nk
+    logical :: direct
+    real(dp) :: xi, yi, ci, wi, fxi, fyi, s3i, r2, keep, low
+    real(dp) :: dxs(chunk), dys(chunk), cs(chunk), r3s(chunk)
+    low = r2low   ! local running minimum (see row_segment)
+    do i = i_lo, i_hi
+      xi = x(i); yi = y(i)
+      ci = k_pair*mu(i)
+      wi = wsin(i)
+      fxi = 0; fyi = 0; s3i = 0
+      do k0 = start(i), start(i + 1) - 1, chunk
+        nk = min(chunk, start(i + 1) - k0)
+        do m = 1, nk
+          j = nbr(k0 + m - 1)
+          dxs(m) = xi - x(j)
+          dys(m) = yi - y(j)
+          r2 = dxs(m)*dxs(m) + dys(m)*dys(m)
+          low = min(low, r2)
+          keep = 1
+          if (check) keep = merge(1.0_dp, 0.0_dp, r2 < rc2)
+          if (sp%on) keep = near_weight(sp, r2)
+          call dipole_kernel(r2, shift4, cs(m), r3s(m))
+          cs(m) = keep*ci*mu(j)*cs(m)
+          r3s(m) = keep*r3s(m)
+        end do
+        direct = hi_direct >= n
+        if (.not. direct) direct = maxval(nbr(k0:k0 + nk - 1)) <= hi_direct
+        if (direct) then   ! the usual case: every j is ours
+          do m = 1, nk
+            j = nbr(k0 + m - 1)
+            fxi = fxi + cs(m)*dxs(m)
+            fyi = fyi + cs(m)*dys(m)
+            fx(j) = fx(j) - cs(m)*dxs(m)
+            fy(j) = fy(j) - cs(m)*dys(m)
+          end do
+          if (with_r3) then
+            do m = 1, nk
+              j = nbr(k0 + m - 1)
+              s3i = s3i + wsin(j)*r3s(m)
+              s3(j) = s3(j) + wi*r3s(m)
+            end do
+          end if
+        else                          ! rows next to a later thread's block
+          do m = 1, nk
+            j = nbr(k0 + m - 1)
+            fxi = fxi + cs(m)*dxs(m)
+            fyi = fyi + cs(m)*dys(m)
+            if (with_r3) s3i = s3i + wsin(j)*r3s(m)
+            if (j <= hi_direct) then
+              fx(j) = fx(j) - cs(m)*dxs(m)
+              fy(j) = fy(j) - cs(m)*dys(m)
+              if (with_r3) s3(j) = s3(j) + wi*r3s(m)
+            else
+              sx(j) = sx(j) - cs(m)*dxs(m)
+              sy(j) = sy(j) - cs(m)*dys(m)
+              if (with_r3) ss(j) = ss(j) + wi*r3s(m)
+            end if
+          end do
+        end if
+      end do
+      fx(i) = fx(i) + fxi
+      fy(i) = fy(i) + fyi
+      if (with_r3) s3(i) = s3(i) + s3i
+    end do
+    r2low = low
+  end subroutine rows_list
+
   !> Dipole rows i_lo..i_hi of a half Verlet list given as contiguous ranges of j (nlist_t
   !> rstart, rlo, rhi: the listed j of row i lie in rlo(r)..rhi(r), r = rstart(i)..rstart(i+1)-1,
   !> together with unlisted j that are beyond r_c and are masked out; exact for the Verlet rule,
@@ -684,7 +767,7 @@ contains
     integer :: nt, t, lo, hi, i, u
     integer :: bound(0:64)
     real(dp) :: work, dummy(1, 3)
-    logical :: long_rows
+    logical :: mid_rows, long_rows
     nt = 1
     ! threads only pay off with enough pairs per step (fork/join costs ~ microseconds)
     if (mode == mode_all) then
@@ -692,8 +775,9 @@ contains
     else
       work = real(start(n + 1) - 1, dp)
     end if
-    ! dipole lists: by ranges when rows are long, the flat pair sequence when short
-    ! (bench/RESULTS.md section 26)
+    ! dipole lists: the flat pair sequence when rows are short, row by row in between, by
+    ! ranges when they are long (bench/RESULTS.md section 26)
+    mid_rows = work >= mid_row_pairs*real(max(1, n), dp)
     long_rows = work >= long_row_pairs*real(max(1, n), dp) .and. present(rstart)
     !$ if (work >= 5.0e4_dp) nt = min(omp_get_max_threads(), 64)
     r2low = huge(1.0_dp)
@@ -748,6 +832,9 @@ contains
       else if (kernel == kernel_dipole .and. long_rows) then
         call rows_ranges(sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, shift4, &
              with_r3, rstart, rlo, rhi, ax, ay, a3, bx, by, b3, lw)
+      else if (kernel == kernel_dipole .and. mid_rows) then
+        call rows_list(sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, &
+             shift4, check, with_r3, start, nbr, ax, ay, a3, bx, by, b3, lw)
       else
         call rows_pairs(kernel, l, sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, &
              shift4, check, with_r3, start, nbr, own, ax, ay, a3, bx, by, b3, lw)
