@@ -270,13 +270,18 @@ contains
       integer, intent(in) :: at
       integer :: c, ix, iy, jx, jy, k, j
       real(dp) :: rl2, dx, dy
+      logical :: half
       rl2 = nl%rlist**2
       count = 0
       c = cell_index(nl, x(i), y(i)) - 1
       ix = mod(c, nl%ncx)
       iy = c/nl%ncx
-      do jy = max(0, iy - cell_split), min(nl%ncy - 1, iy + cell_split)
-        do jx = max(0, ix - cell_split), min(nl%ncx - 1, ix + cell_split)
+      ! particles sorted by cell (all but 'cells'): every j > i is in a cell of index >= i's,
+      ! i.e. in i's cell row from i's cell on, or in the rows above
+      half = nl%strategy /= nb_cells
+      do jy = merge(iy, max(0, iy - cell_split), half), min(nl%ncy - 1, iy + cell_split)
+        do jx = merge(ix, max(0, ix - cell_split), half .and. jy == iy), &
+             min(nl%ncx - 1, ix + cell_split)
           c = 1 + jx + nl%ncx*jy
           do k = nl%cell_start(c), nl%cell_start(c + 1) - 1
             j = nl%cell_part(k)
