@@ -554,7 +554,9 @@ contains
           end do
           j0 = j0 + lanes
         end do
-        do j = j0, j_hi                                        ! the rest (< lanes)
+        ! the rest (< lanes), lane by lane: the same body as the blocks'; one loop with a
+        ! variable trip count for both measured 0.90x (the block loop then has an epilogue)
+        do j = j0, j_hi
           l = j - j0 + 1
           dx = xi - x(j)
           dy = yi - y(j)
