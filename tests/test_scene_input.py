@@ -82,6 +82,19 @@ def test_tilt_eq_4_10_refused_where_its_normal_force_is_negative():
     assert validate(Scene.read(RUNS / "demo.nml").with_overrides({"physics.tilt": "eq_4_10"}))
 
 
+@pytest.mark.parametrize("ratio, ok", [(0.0, True), (1e-3, False), (1.0, False)])
+def test_only_species_present_restrict_the_tilt_law(ratio, ok):
+    """The a = 0.6 bed with no 3 mm magnet (mix_ratio = 0: 5 mm only, gap 3.1 mm < 5 mm) may
+    use eq. 4.10; any fraction of 3 mm magnets is refused (bench/thesis.py measures R = 0)."""
+    scene = Scene.read(RUNS / "bidisperse" / "a060.nml").with_overrides(
+        {"physics.tilt": "eq_4_10", "particles.mix_ratio": ratio})
+    if ok:
+        assert validate(scene)
+    else:
+        with pytest.raises(SceneError, match=r"needs gap < smallest diameter = 0.003 m"):
+            validate(scene)
+
+
 def test_type_error_in_namelist_text(tmp_path):
     path = tmp_path / "typo.nml"
     path.write_text((RUNS / "demo.nml").read_text().replace("n = 368", "n = 3x68"))

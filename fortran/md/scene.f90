@@ -120,6 +120,28 @@ module scene
 
 contains
 
+  !> Smallest relative diameter D_k/D1 among the species the scene places (number fraction
+  !> > 0: 1 - mix_ratio and mix_ratio for two species, species_fraction for more). A species
+  !> with no particles (e.g. mix_ratio = 0) does not restrict the gap or the tilt law.
+  pure real(dp) function present_d_min(sc) result(d)
+    type(scene_t), intent(in) :: sc
+    integer :: k, ns
+    real(dp) :: f
+    ns = max(1, min(sc%n_species, max_species))
+    d = huge(1.0_dp)
+    do k = 1, ns
+      if (ns == 1) then
+        f = 1
+      else if (ns == 2) then
+        f = merge(1.0_dp - sc%mix_ratio, sc%mix_ratio, k == 1)
+      else
+        f = sc%species_fraction(k)
+      end if
+      if (f > 0) d = min(d, sc%species_diameter(k))
+    end do
+    if (d == huge(1.0_dp)) d = minval(sc%species_diameter(1:ns))
+  end function present_d_min
+
   !> Read every group of a namelist file into `sc` (absent groups keep defaults).
   subroutine scene_read(path, sc, st)
     character(len=*), intent(in) :: path
@@ -862,15 +884,14 @@ contains
     call rpos('physics', 'min_distance', sc%min_distance, 0.0_dp, 1.0_dp, .true.)
     call choice('physics', 'tilt', sc%tilt, [character(len=name_len) :: 'eq_2_10', 'eq_4_10'])
     if (trim(sc%dry_friction) /= 'none') then
-      ! every species must be able to tilt against the glass (eq. 2.10)
-      dmax = sqrt((sc%diameter*minval(sc%species_diameter(1:max(1, min(sc%n_species, &
-           max_species)))))**2 + sc%thickness**2)
+      ! every species present (fraction > 0) must be able to tilt against the glass (eq. 2.10)
+      dmax = sqrt((sc%diameter*present_d_min(sc))**2 + sc%thickness**2)
       if (sc%gap <= sc%thickness .or. sc%gap >= dmax) call bad('material', 'gap', &
            rstr(sc%gap), 'with dry friction on, every magnet must be able to tilt: '// &
            'thickness < gap < sqrt(D_min^2 + thickness^2) = '//rstr(dmax)//' m')
       ! eq. 4.10 without - phi: phi + theta < 90 deg (a positive normal force, eq. 4.11)
       ! needs E/sqrt(D^2+eps^2) < cos(phi) = D/sqrt(D^2+eps^2), i.e. gap < D_min
-      dmax = sc%diameter*minval(sc%species_diameter(1:max(1, min(sc%n_species, max_species))))
+      dmax = sc%diameter*present_d_min(sc)
       if (trim(sc%tilt) == 'eq_4_10' .and. sc%gap >= dmax) call bad('physics', 'tilt', &
            "'"//trim(sc%tilt)//"'", 'needs gap < smallest diameter = '//rstr(dmax)//' m (gap = '// &
            rstr(sc%gap)//' m: phi + theta >= 90 deg, the normal force of eq. 4.11 would be < 0)')
