@@ -13,6 +13,8 @@ every 0.2 T at every dt (the interval in time is what its error depends on: sect
         # -> bench/results/cycle_dt_bias_rows.csv, cycle_dt_bias.csv
     OMP_NUM_THREADS=1 .venv/bin/python bench/cycle_dt_bias.py --seeds 32 --workers 2 \
         --grid shipped --reuse bench/results/cycle_dt_bias_rows.csv   # + the shipped setting
+    OMP_NUM_THREADS=1 .venv/bin/python bench/cycle_dt_bias.py --seeds 112 --workers 2 \
+        --grid dt4 --reuse bench/results/cycle_dt_bias_rows.csv       # + dt 4e-3 (section 27)
 
 Unlike ``bench/dt_bias.py`` (compression at 1 D1/T, where the particles always slide) this
 regime holds most particles by static friction, and that is where the lagged friction velocity
@@ -55,7 +57,8 @@ GRIDS = {"friction": [setting("implicit", 2e-3), setting("implicit", 8e-3),
                       setting("lagged", 8e-3), setting("lagged", 2e-3)],
          "shipped": [setting("implicit", 8e-3, "linear", 0.4)],
          "linear0.8": [setting("implicit", 8e-3, "linear", 0.8)],
-         "certify": [setting("implicit", 2e-3), setting("implicit", 8e-3, "linear", 0.8)]}
+         "certify": [setting("implicit", 2e-3), setting("implicit", 8e-3, "linear", 0.8)],
+         "dt4": [setting("implicit", 4e-3, "linear", 0.8)]}
 
 
 def compression_only(scene: Path) -> Scene:

@@ -10,9 +10,9 @@ go to bench/out/thesis[_quick]/; a completed run whose spec is unchanged is reus
 Experiments (all from runs/standard.nml, runs/size/N*.nml, runs/bidisperse/a060.nml):
 
 * Table 3.2 / 5.1 - F_max [N] vs N at 8.33 mm/s and the linear fit over N = 368..736.
-  The size family runs with the standard scene's numerics: dt 8e-3 T with the friction at
-  v_n (in the size scenes), Verlet r_c = 4.13 (skin 0.5) + linear far field every 100 steps
-  (the thesis: O(N^2)); the bias of that choice is measured in the Table 5.2 rows.
+  The size family runs with the standard scene's numerics: its dt and the friction at v_n
+  (in the size scenes), its Verlet list and linear far field (runs/standard.nml; the thesis:
+  O(N^2)); the bias of that choice is measured in the Table 5.2 rows.
   F_max is the largest piston force over every row of piston.dat (written every 0.1 T,
   0.0034 D1 of stroke), in N via run.json's force unit m1 g.
 * Table 3.1 - D_hat at the start of compression, its minimum, at the end of the
@@ -31,6 +31,7 @@ Experiments (all from runs/standard.nml, runs/size/N*.nml, runs/bidisperse/a060.
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import math
 import subprocess
@@ -57,9 +58,8 @@ MM_PER_S_5MM = 1e-3 * math.sqrt(5e-3 / 9.8) / 5e-3   # 1 mm/s in D1/T, D1 = 5 mm
 V_833 = 8.33 * MM_PER_S_6MM
 # runs/standard.nml's list and far field (RESULTS section 25); the size scenes carry its dt
 # and friction scheme and are O(N^2) as written
-STANDARD_NUMERICS = {"integration.neighbour": "verlet", "integration.r_cut": 4.13,
-                     "integration.skin": 0.5, "integration.tail": "linear",
-                     "integration.tail_every": 100, "integration.tail_switch": 1.0}
+STANDARD_NUMERICS = {f"integration.{k}": Scene.read(ROOT / "runs/standard.nml").get("integration", k)
+                     for k in ("neighbour", "r_cut", "skin", "tail", "tail_every", "tail_switch")}
 THESIS_VERLET = {"integration.neighbour": "thesis", "integration.r_cut": 7.13,
                  "integration.skin": 4.13, "integration.tail": "none"}
 ALL_PAIRS = {"integration.neighbour": "all_pairs"}
@@ -115,7 +115,8 @@ QUICK = Config("quick", sizes=(92, 184, 368, 552, 736), seeds=(1,), seeds_368=(1
                bi_seeds=(1,), bi_speed_mm_s=10.0, conv_steps=(4e-3, 1e-3, 2.5e-4),
                reductions={"size": "QUICK-S", "t52": "QUICK-V", "bi": "QUICK-B"})
 LEGEND = {"QUICK-S": "size family: 1 seed (3 at N = 368), N = 92, 184, 368, 552, 736 (thesis: 3 seeds, "
-                     "every N); Verlet 4.13 + frozen tail (thesis: O(N^2))",
+                     "every N); the standard scene's numerics: dt 4e-3 T, friction at v_n, Verlet "
+                     "4.13 + linear far field (thesis: O(N^2))",
           "QUICK-V": "Table 5.2: N = 368 only, 2 paired seeds (thesis: 3 unpaired, 5 sizes)",
           "QUICK-B": "bi-disperse a = 0.6: R = 0, 0.25, 0.5, 0.75, 1, 1 seed, piston 10 mm/s "
                      "(thesis: 1 mm/s, 2+ runs, 23 R values)"}
@@ -154,8 +155,11 @@ def resolved(spec: Spec) -> Scene:
 
 
 def spec_key(spec: Spec) -> str:
-    """What identifies a run: scene path and overrides (stored as spec.json)."""
-    return json.dumps({"scene": spec.scene, "overrides": dict(spec.overrides)}, sort_keys=True)
+    """What identifies a run: the scene (path and the text of its file) and the overrides
+    (stored as spec.json): a scene edited since is run again."""
+    text = (ROOT / spec.scene).read_text()
+    return json.dumps({"scene": spec.scene, "scene_sha256": hashlib.sha256(text.encode()).hexdigest(),
+                       "overrides": dict(spec.overrides)}, sort_keys=True)
 
 
 def execute(spec: Spec, out_root: Path) -> Path:
@@ -170,9 +174,11 @@ def execute(spec: Spec, out_root: Path) -> Path:
     if status.startswith(("interrupted", "paused")) and (out / "checkpoint.bin").is_file():
         resume(out, progress=False, threads=1)
     else:
+        # another spec's run (or a failed one) in this directory: replaced
+        replace = (out / "run.json").is_file()
         out.mkdir(parents=True, exist_ok=True)
         stored.write_text(key)   # before the run: an interrupted run resumes next time
-        run(resolved(spec), out, progress=False, threads=1)
+        run(resolved(spec), out, progress=False, threads=1, overwrite=replace)
     print(f"  {spec.name}: {time.perf_counter() - t0:.0f} s", flush=True)
     return out
 

@@ -1,11 +1,12 @@
 """The shipped standard scene reproduces the thesis' N = 368 system (Tables 3.1, 3.2).
 
 One compression of runs/standard.nml at the thesis' faster speed, 8.33 mm/s (Table 3.2,
-§3.5), with the numerics the scene ships (Verlet r_c = 4.13 + linear far field, dt 8e-3 T;
+§3.5), with the numerics the scene ships (Verlet r_c = 4.13 + linear far field, dt 4e-3 T;
 output cadences converted to the same times: piston every 0.1 T, D_hat every 4 T). The cycle's
 maximum force is at the turnaround, so the compression alone gives it: the protocol is a
-pure function of time, and expand = .false. changes nothing before H_f. About 35 s on one
-core. Fails if H_f, the speed, the units or the physics drift away from the thesis.
+pure function of time, and expand = .false. changes nothing before H_f. And the whole cycle
+once, for the end of the expansion (D_3). About 30 s on one core. Fails if H_f, the speed, the
+units, the physics or the time step's accuracy drift away.
 """
 from __future__ import annotations
 
@@ -60,3 +61,17 @@ def test_mean_distance_is_table_3_1(compression: Run) -> None:
     d0 = float(md.loc[(md["step"] - start).abs().idxmin(), "D_hat"])
     assert d0 == pytest.approx(14.95, rel=0.02)
     assert float(md["D_hat"].iloc[-1]) == pytest.approx(10.90, rel=0.01)
+
+
+def test_end_of_expansion_is_converged_in_dt(tmp_path: Path) -> None:
+    """D_hat at the end of the cycle (Table 3.1's D_3) with the shipped numerics, seed 1,
+    against 13.79 D1: the mean of 8 seeds at dt 2e-3 and 8 at 4e-3 with the friction at v_n
+    (per-seed spread 0.02 D1; bench/RESULTS.md section 27). The lagged friction ends the cycle
+    higher (14.08 D1 at 4e-3 here; 13.93 at 2e-3, 13.89 at 1e-3: its value falls with dt, and
+    the thesis' 13.96 sits on it). At dt 8e-3 2 seeds of 8 ended 0.8 and 3.3 % high: one seed
+    catches that only sometimes, section 27 holds the measurement."""
+    dt = float(Scene.read(RUNS / "standard.nml").get("integration", "dt"))   # [T]
+    r = run(RUNS / "standard.nml", tmp_path / "cycle833", progress=False,
+            overrides={"protocol.piston_speed": V_833, "output.piston_every": round(1.0 / dt),
+                       "output.frame_every": 0, "output.distance_every": round(50.0 / dt)})
+    assert float(r.mean_distance()["D_hat"].iloc[-1]) == pytest.approx(13.79, abs=0.1)
