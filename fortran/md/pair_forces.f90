@@ -23,12 +23,12 @@ module pair_forces
   !> one flat pair sequence (rows_pairs), and from which they go by contiguous ranges of j
   !> (rows_ranges, when the list has ranges); bench/RESULTS.md section 26
   real(dp), parameter :: mid_row_pairs = 8, long_row_pairs = 10
-  !> Lanes of the contiguous dipole loops (dipole_segment): the sums on i are kept in this many
+  !> Lanes of the contiguous dipole loops (dipole_ranges): the sums on i are kept in this many
   !> fixed lanes (j = j0 + l - 1 goes to lane l), so the loop vectorises without reordering a
   !> floating-point sum; the order depends on the lane count only, never on the machine
   integer, parameter :: lanes = 4
   integer, parameter :: kernel_dipole = 1, kernel_lj6 = 2, kernel_lj = 3
-  integer, parameter :: side_none = 0, side_near = 1, side_far = 2   !< split weights (dipole_segment)
+  integer, parameter :: side_none = 0, side_near = 1, side_far = 2   !< split weights (dipole_ranges)
   integer, parameter :: pair_chunk = 256   !< pairs per chunk of the flat pair loop
 
   !> Seed 000's steric law between r_m and the cut-off R: U = 4 U0 ((2/r)^2p - (2/r)^p),
@@ -593,7 +593,7 @@ contains
     end do
   end subroutine add_row_sums
 
-  !> One lane of dipole_segment: r2 = dx^2 + dy^2 (huge(1.0) in a lane that is off, so that
+  !> One lane of dipole_ranges: r2 = dx^2 + dy^2 (huge(1.0) in a lane that is off, so that
   !> it leaves the running minimum alone) and the masked and weighted kernel: force factor c
   !> (times k mu_i mu_j) and r^-3 r3, both exactly 0 in a lane that is off or out of the mask.
   !> The weight is wa + wb S(r): 1 (wa = 1, wb = 0), S (0, 1) or 1 - S (1, -1).
