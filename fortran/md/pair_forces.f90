@@ -61,6 +61,11 @@ module pair_forces
   !> Spill buffers of threaded_pass (n, 3, threads): reactions a thread puts on
   !> rows owned by later threads. Kept between passes and all zero between them.
   real(dp), allocatable :: spill(:, :, :)
+  !> Per-row sums of dipole_ranges (3, n; each thread uses its own rows) and the all-pairs
+  !> triangle as ranges (row i: the one range i+1..n). Kept between passes: no allocation per
+  !> step; set up by threaded_pass outside its parallel region.
+  real(dp), allocatable :: row_sums(:, :)
+  integer, allocatable :: tri_start(:), tri_lo(:), tri_hi(:)
 
 contains
 
@@ -307,25 +312,17 @@ contains
     real(dp), intent(inout) :: sx(*), sy(*), ss(*)
     real(dp), intent(inout) :: r2low   !< running minimum of r^2
     integer :: i
-    integer, allocatable :: rs(:), rl(:), rh(:)
-    real(dp), allocatable :: rsum(:, :)
     real(dp) :: fxi, fyi
     if (i_hi < i_lo) return
-    if (kernel == kernel_dipole) then   ! row i is the one range i+1..n
-      allocate(rs(n + 1), rl(n), rh(n), rsum(3, i_lo:i_hi))
-      rsum = 0
-      do i = i_lo, i_hi + 1
-        rs(i) = i
-        if (i <= n) rl(i) = i + 1
-        if (i <= n) rh(i) = n
-      end do
+    if (kernel == kernel_dipole) then   ! row i is the one range i+1..n (tri_*)
+      row_sums(:, i_lo:i_hi) = 0
       call dipole_ranges(sp, merge(side_far, side_none, sp%on), i_lo, i_hi, 1, min(n, hi_direct), &
-           min(n, hi_direct), x, y, mu, wsin, k_pair, r2_min, huge(1.0_dp), 0.0_dp, with_r3, rs, rl, rh, &
-           fx, fy, s3, rsum, r2low)
+           min(n, hi_direct), x, y, mu, wsin, k_pair, r2_min, huge(1.0_dp), 0.0_dp, with_r3, &
+           tri_start, tri_lo, tri_hi, fx, fy, s3, row_sums(:, i_lo:i_hi), r2low)
       if (hi_direct < n) call dipole_ranges(sp, merge(side_far, side_none, sp%on), i_lo, i_hi, &
            hi_direct + 1, n, n, x, y, mu, wsin, k_pair, r2_min, huge(1.0_dp), 0.0_dp, with_r3, &
-           rs, rl, rh, sx, sy, ss, rsum, r2low)
-      call add_row_sums(i_lo, i_hi, with_r3, rsum, fx, fy, s3)
+           tri_start, tri_lo, tri_hi, sx, sy, ss, row_sums(:, i_lo:i_hi), r2low)
+      call add_row_sums(i_lo, i_hi, with_r3, row_sums(:, i_lo:i_hi), fx, fy, s3)
       return
     end if
     do i = i_lo, i_hi
@@ -475,16 +472,15 @@ contains
     real(dp), intent(inout) :: sx(*), sy(*), ss(*)
     real(dp), intent(inout) :: r2low   !< running minimum of r^2
     integer :: side
-    real(dp), allocatable :: rsum(:, :)
     if (i_hi < i_lo) return
-    allocate(rsum(3, i_lo:i_hi))
-    rsum = 0
+    row_sums(:, i_lo:i_hi) = 0
     side = merge(side_near, side_none, sp%on)
     call dipole_ranges(sp, side, i_lo, i_hi, 1, hi_direct, hi_direct, x, y, mu, wsin, k_pair, &
-         0.0_dp, rc2, shift4, with_r3, rstart, rlo, rhi, fx, fy, s3, rsum, r2low)
+         0.0_dp, rc2, shift4, with_r3, rstart, rlo, rhi, fx, fy, s3, row_sums(:, i_lo:i_hi), r2low)
     if (hi_direct < n) call dipole_ranges(sp, side, i_lo, i_hi, hi_direct + 1, n, n, x, y, mu, &
-         wsin, k_pair, 0.0_dp, rc2, shift4, with_r3, rstart, rlo, rhi, sx, sy, ss, rsum, r2low)
-    call add_row_sums(i_lo, i_hi, with_r3, rsum, fx, fy, s3)
+         wsin, k_pair, 0.0_dp, rc2, shift4, with_r3, rstart, rlo, rhi, sx, sy, ss, &
+         row_sums(:, i_lo:i_hi), r2low)
+    call add_row_sums(i_lo, i_hi, with_r3, row_sums(:, i_lo:i_hi), fx, fy, s3)
   end subroutine rows_ranges
 
   !> The dipole kernel over contiguous ranges of j: rows i = i_lo..i_hi, ranges
@@ -744,6 +740,20 @@ contains
     fy(ic) = fy(ic) + ay
   end subroutine chunk_sums
 
+  !> The buffers of the contiguous dipole passes for n particles (allocated when n changes).
+  subroutine range_buffers(n)
+    integer, intent(in) :: n
+    integer :: i
+    if (allocated(row_sums)) then
+      if (size(row_sums, 2) /= n) deallocate(row_sums, tri_start, tri_lo, tri_hi)
+    end if
+    if (allocated(row_sums)) return
+    allocate(row_sums(3, n), tri_start(n + 1), tri_lo(n), tri_hi(n))
+    tri_start = [(i, i = 1, n + 1)]
+    tri_lo = [(i + 1, i = 1, n)]
+    tri_hi = n
+  end subroutine range_buffers
+
   !> Run the rows on the OpenMP threads, deterministically and without
   !> per-step buffers. Thread t takes a fixed block of rows lo_t..hi_t
   !> holding ~1/nt of the pairs. Since every pair (i, j) has j > i, only
@@ -783,6 +793,7 @@ contains
     long_rows = work >= long_row_pairs*real(max(1, n), dp) .and. present(rstart)
     !$ if (work >= 5.0e4_dp) nt = min(omp_get_max_threads(), 64)
     r2low = huge(1.0_dp)
+    if (kernel == kernel_dipole .and. (mode == mode_all .or. long_rows)) call range_buffers(n)
     if (nt == 1) then
       dummy = 0
       call rows(1, n, n, fx, fy, s3, dummy(:, 1), dummy(:, 2), dummy(:, 3), r2low)
