@@ -9,7 +9,7 @@ program partsim
   use, intrinsic :: iso_c_binding, only: c_int
   use kinds, only: i8
   use errors, only: status_t, exit_bad_input
-  use runner, only: sim_execute, sim_resume, sim_check
+  use runner, only: sim_execute, sim_resume, sim_check, sim_describe
   use signals, only: install_handlers
   implicit none
   interface
@@ -20,13 +20,17 @@ program partsim
     end subroutine c_exit
   end interface
   type(status_t) :: st
-  character(len=4096) :: arg, path, dir, resume_dir
+  character(len=4096) :: arg, path, dir, resume_dir, describe_kind
+  character(len=:), allocatable :: text
+  logical :: as_json
   logical :: check, quiet, overwrite, out_given
   integer :: i, nargs, ios
   integer(i8) :: stop_at, total
 
   path = ''
   resume_dir = ''
+  describe_kind = ''
+  as_json = .false.
   stop_at = -1
   dir = '.'
   check = .false.
@@ -59,12 +63,18 @@ program partsim
       call get_command_argument(i, arg)
       read(arg, *, iostat=ios) stop_at
       if (ios /= 0 .or. stop_at < 0) call usage('--stop-at needs a step number >= 0')
+    case ('--describe', '--schema')
+      as_json = trim(arg) == '--schema'
+      i = i + 1
+      if (i > nargs) call usage(trim(arg)//' needs a scene kind')
+      call get_command_argument(i, describe_kind)
     case ('--quiet', '-q')
       quiet = .true.
     case ('--help', '-h')
       write(output_unit, '(a)') 'usage: partsim SCENE.nml [--out DIR] [--overwrite] [--check] '// &
            '[--quiet] [--stop-at STEP]'
       write(output_unit, '(a)') '       partsim --resume RUN_DIR [--quiet] [--stop-at STEP]'
+      write(output_unit, '(a)') '       partsim --describe KIND | --schema KIND   (the scene''s keys: table | JSON)'
       stop
     case default
       if (arg(1:1) == '-') call usage('unknown option '//trim(arg))
@@ -73,6 +83,16 @@ program partsim
     end select
     i = i + 1
   end do
+  if (len_trim(describe_kind) > 0) then
+    call sim_describe(trim(describe_kind), as_json, text, st)
+    if (st%code == 0) then
+      write(output_unit, '(a)', advance='no') text
+      stop
+    end if
+    write(error_unit, '(a)') 'partsim: error: '//trim(st%msg)
+    flush(error_unit)
+    call c_exit(int(st%code, c_int))
+  end if
   if (len_trim(path) == 0 .and. len_trim(resume_dir) == 0) call usage('missing scene file')
   if (len_trim(path) > 0 .and. len_trim(resume_dir) > 0) &
        call usage('give a scene file or --resume RUN_DIR, not both')

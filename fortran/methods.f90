@@ -12,7 +12,7 @@ module methods
   implicit none
   private
 
-  public :: method_for_scene, kind_names
+  public :: method_for_scene, method_for_kind, kind_names
 
   character(len=*), parameter :: kind_names = "'magnet_bed' | 'oscillator' | 'dla' | 'rods' | 'lj_box'"
 
@@ -26,6 +26,18 @@ contains
     type(status_t), intent(inout) :: st
     call read_kind(path, kind_names, kind, st)
     if (st%code /= 0) return
+    call method_for_kind(kind, m, st, path)
+  end subroutine method_for_scene
+
+  !> Allocate the method of scene kind `kind` (refused naming the kinds when unknown).
+  subroutine method_for_kind(kind, m, st, path)
+    character(len=*), intent(in) :: kind
+    class(method_t), allocatable, intent(out) :: m
+    type(status_t), intent(inout) :: st
+    character(len=*), intent(in), optional :: path
+    character(len=:), allocatable :: where
+    where = 'kind'
+    if (present(path)) where = trim(path)//': &scene kind'
     select case (trim(kind))
     case ('magnet_bed')
       allocate(bed_t :: m)
@@ -38,9 +50,9 @@ contains
     case ('lj_box')
       allocate(lj_box_t :: m)
     case default
-      call set_error(st, exit_bad_input, trim(path)//": &scene kind = '"//trim(kind)// &
+      call set_error(st, exit_bad_input, where//" = '"//trim(kind)// &
            "': allowed "//kind_names)
     end select
-  end subroutine method_for_scene
+  end subroutine method_for_kind
 
 end module methods

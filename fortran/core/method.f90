@@ -14,6 +14,7 @@ module method
   use kinds, only: dp, i8
   use errors, only: status_t
   use ckpt, only: ckpt_writer_t
+  use schema, only: schema_t
   implicit none
   private
 
@@ -28,8 +29,9 @@ module method
     integer(i8) :: progress_every = 0       !< units between progress lines (0: about 200 per run)
   contains
     procedure(load_i), deferred :: load
+    procedure :: keys => keys_none
     procedure :: read => read_default
-    procedure(scene_text_i), deferred :: scene_text
+    procedure :: scene_text => scene_text_default
     procedure(open_i), deferred :: open_outputs
     procedure(advance_i), deferred :: advance
     procedure(advance_i), deferred :: finish
@@ -46,18 +48,18 @@ module method
     !> Read and validate the scene at `path`, build the initial state. Writes nothing.
     subroutine load_i(self, path, st)
       import :: method_t, status_t
-      class(method_t), intent(inout) :: self
+      class(method_t), intent(inout), target :: self
       character(len=*), intent(in) :: path
       type(status_t), intent(inout) :: st
     end subroutine load_i
-    !> The fully resolved scene (every key, its value and unit), lines ending in
-    !> achar(10); the first line starts with '! resolved scene:' (the runner
-    !> recognises a run directory by it and never removes another scene.nml).
-    function scene_text_i(self) result(text)
-      import :: method_t
-      class(method_t), intent(in) :: self
-      character(len=:), allocatable :: text
-    end function scene_text_i
+    !> Declare the kind's scene (module schema): every group and key, bound to
+    !> the variable that holds it (its current value is the default). The
+    !> declaration drives reading, validation, scene.nml and the documentation.
+    subroutine keys_i(self, s)
+      import :: method_t, schema_t
+      class(method_t), intent(inout), target :: self
+      type(schema_t), intent(inout) :: s
+    end subroutine keys_i
     !> Open the output files in `dir`: fresh with headers, or appended to after a resume.
     subroutine open_i(self, dir, append, st)
       import :: method_t, status_t
@@ -134,14 +136,33 @@ contains
     names(n) = name
   end subroutine add_output
 
+  !> Transitional: a kind that has not declared its keys yet (removed when every kind has).
+  subroutine keys_none(self, s)
+    class(method_t), intent(inout), target :: self
+    type(schema_t), intent(inout) :: s
+    if (.false.) s%nk = s%nk + 0*storage_size(self)
+  end subroutine keys_none
+
   !> Read the scene file only (file-level and type checks, no range
-  !> validation), for resolving a scene as the engine reads it. A method
-  !> without a separate reading step validates here too (the default).
+  !> validation), for resolving a scene as the engine reads it.
   subroutine read_default(self, path, st)
-    class(method_t), intent(inout) :: self
+    class(method_t), intent(inout), target :: self
     character(len=*), intent(in) :: path
     type(status_t), intent(inout) :: st
-    call self%load(path, st)
+    type(schema_t) :: s
+    call self%keys(s)
+    call s%read(path, st)
   end subroutine read_default
+
+  !> The fully resolved scene (every key, its value, unit and meaning), lines
+  !> ending in achar(10); the first line starts with '! resolved scene:' (the
+  !> runner recognises a run directory by it and never removes another scene.nml).
+  function scene_text_default(self) result(text)
+    class(method_t), intent(inout), target :: self
+    character(len=:), allocatable :: text
+    type(schema_t) :: s
+    call self%keys(s)
+    text = s%text()
+  end function scene_text_default
 
 end module method

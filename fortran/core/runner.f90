@@ -11,7 +11,8 @@ module runner
   use kinds, only: dp, i8
   use errors, only: status_t, set_error, exit_ok, exit_interrupted, exit_io
   use method, only: method_t, fname_len, max_out_files
-  use methods, only: method_for_scene
+  use methods, only: method_for_scene, method_for_kind
+  use schema, only: schema_t
   use, intrinsic :: iso_fortran_env, only: int8, int32
   use scene_input, only: kind_len, read_text
   use files, only: file_exists, remove_file, make_dir, truncate_file, cfile_t, cf_open, &
@@ -23,7 +24,7 @@ module runner
   implicit none
   private
 
-  public :: sim_execute, sim_resume, sim_check, sim_resolve
+  public :: sim_execute, sim_resume, sim_check, sim_resolve, sim_describe
 
   character(len=*), parameter :: ckpt_name = 'checkpoint.bin'
   character(len=*), parameter :: ckpt_failed = 'checkpoint_failed.bin'
@@ -49,6 +50,26 @@ module runner
 contains
 
   !> Load and validate a scene (nothing written): units of work and a one-line summary.
+  !> The declaration of kind `kind`'s scene: a Markdown table of every group and
+  !> key (type, default, allowed values, unit, meaning), or JSON when `as_json`.
+  subroutine sim_describe(kind, as_json, text, st)
+    character(len=*), intent(in) :: kind
+    logical, intent(in) :: as_json
+    character(len=:), allocatable, intent(out) :: text
+    type(status_t), intent(inout) :: st
+    class(method_t), allocatable :: m
+    type(schema_t) :: s
+    text = ''
+    call method_for_kind(kind, m, st)
+    if (st%code /= 0) return
+    call m%keys(s)
+    if (as_json) then
+      text = s%json()
+    else
+      text = s%describe()
+    end if
+  end subroutine sim_describe
+
   subroutine sim_check(path, total, st)
     character(len=*), intent(in) :: path
     integer(i8), intent(out) :: total

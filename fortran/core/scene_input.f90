@@ -287,19 +287,70 @@ contains
     r = r//"'"
   end function quoted
 
-  !> Shortest text that reads back to exactly v (17 significant digits at most).
+  !> Shortest text that reads back to exactly v (17 significant digits at
+  !> most): plain for 1e-4 <= |v| < 1e7 (e.g. 0.001, 6.283185307179586,
+  !> 75.0), else with an exponent (2.5e-07, 1.0e+12); valid JSON too.
   function real_str(v) result(s)
     real(dp), intent(in) :: v
     character(len=:), allocatable :: s
     character(len=40) :: buf
+    character(len=:), allocatable :: b, digits, sgn
     real(dp) :: back
-    integer :: d, ios
+    integer :: d, ios, ie, e, nd
     do d = 1, 17
       write(buf, '(es40.'//int_str(int(d - 1, i8))//'e3)') v
       read(buf, *, iostat=ios) back
       if (ios == 0 .and. (back == v .or. .not. ieee_is_finite(v))) exit
     end do
-    s = trim(adjustl(buf))
+    b = trim(adjustl(buf))
+    if (.not. ieee_is_finite(v)) then
+      s = b
+      return
+    end if
+    if (v == 0.0_dp) then
+      s = merge('-0.0', '0.0 ', sign(1.0_dp, v) < 0.0_dp)
+      s = trim(s)
+      return
+    end if
+    sgn = ''
+    if (b(1:1) == '-') then
+      sgn = '-'
+      b = b(2:)
+    end if
+    ie = index(b, 'E')
+    read(b(ie + 1:), *) e
+    digits = b(1:1)//b(3:ie - 1)          ! mantissa digits without the point
+    nd = len(digits)
+    do while (nd > 1)
+      if (digits(nd:nd) /= '0') exit
+      nd = nd - 1
+    end do
+    digits = digits(1:nd)
+    if (e >= -4 .and. e < 7) then
+      if (e >= 0) then
+        if (nd <= e + 1) then
+          s = sgn//digits//repeat('0', e + 1 - nd)//'.0'
+        else
+          s = sgn//digits(1:e + 1)//'.'//digits(e + 2:)
+        end if
+      else
+        s = sgn//'0.'//repeat('0', -e - 1)//digits
+      end if
+    else
+      if (nd == 1) then
+        s = sgn//digits//'.0e'
+      else
+        s = sgn//digits(1:1)//'.'//digits(2:)//'e'
+      end if
+      if (e < 0) then
+        s = s//'-'
+      else
+        s = s//'+'
+      end if
+      write(buf, '(i0)') abs(e)
+      if (abs(e) < 10) buf = '0'//buf
+      s = s//trim(buf)
+    end if
   end function real_str
 
   function int_str(v) result(s)

@@ -82,7 +82,7 @@ contains
 
   !> Read (read_file), validate, resolve and build the initial state.
   subroutine load(self, path, st)
-    class(rods_t), intent(inout) :: self
+    class(rods_t), intent(inout), target :: self
     character(len=*), intent(in) :: path
     type(status_t), intent(inout) :: st
     call self%read(path, st)
@@ -102,7 +102,7 @@ contains
 
   !> The scene file's groups (no range checks); I = m L^2/12 resolved for 'thin_rod'.
   subroutine read_file(self, path, st)
-    class(rods_t), intent(inout) :: self
+    class(rods_t), intent(inout), target :: self
     character(len=*), intent(in) :: path
     type(status_t), intent(inout) :: st
     character(len=kind_len) :: kind
@@ -297,7 +297,7 @@ contains
   end subroutine initial_state
 
   function scene_text(self) result(text)
-    class(rods_t), intent(in) :: self
+    class(rods_t), intent(inout), target :: self
     character(len=:), allocatable :: text
     character(len=1), parameter :: nl = achar(10)
     text = '! resolved scene: kind rods (space-homogeneous DSMC). Units: mass m, length L, '// &

@@ -95,7 +95,7 @@ contains
 
   !> Read (read_file), validate, build the initial state.
   subroutine load(self, path, st)
-    class(dla_t), intent(inout) :: self
+    class(dla_t), intent(inout), target :: self
     character(len=*), intent(in) :: path
     type(status_t), intent(inout) :: st
     call self%read(path, st)
@@ -110,7 +110,7 @@ contains
 
   !> The scene file's groups (absent groups keep their defaults; no range checks).
   subroutine read_file(self, path, st)
-    class(dla_t), intent(inout) :: self
+    class(dla_t), intent(inout), target :: self
     character(len=*), intent(in) :: path
     type(status_t), intent(inout) :: st
     character(len=kind_len) :: kind
@@ -360,7 +360,7 @@ contains
   end subroutine initial_state
 
   function scene_text(self) result(text)
-    class(dla_t), intent(in) :: self
+    class(dla_t), intent(inout), target :: self
     character(len=:), allocatable :: text
     integer :: k
     character(len=4) :: ks

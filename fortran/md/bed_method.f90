@@ -30,7 +30,7 @@ module bed_method
 contains
 
   subroutine load(self, path, st)
-    class(bed_t), intent(inout) :: self
+    class(bed_t), intent(inout), target :: self
     character(len=*), intent(in) :: path
     type(status_t), intent(inout) :: st
     call sim_load(self%sim, path, st)
@@ -41,14 +41,14 @@ contains
 
   !> The scene file as the engine reads it (no range validation).
   subroutine read_file(self, path, st)
-    class(bed_t), intent(inout) :: self
+    class(bed_t), intent(inout), target :: self
     character(len=*), intent(in) :: path
     type(status_t), intent(inout) :: st
     call scene_read(path, self%sim%sc, st)
   end subroutine read_file
 
   function scene_text(self) result(text)
-    class(bed_t), intent(in) :: self
+    class(bed_t), intent(inout), target :: self
     character(len=:), allocatable :: text
     text = scene_text_of(self%sim%sc)
   end function scene_text

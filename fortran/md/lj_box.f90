@@ -116,7 +116,7 @@ module lj_box
 contains
 
   subroutine load(self, path, st)
-    class(lj_box_t), intent(inout) :: self
+    class(lj_box_t), intent(inout), target :: self
     character(len=*), intent(in) :: path
     type(status_t), intent(inout) :: st
     call self%read(path, st)
@@ -130,7 +130,7 @@ contains
 
   !> The scene file's groups (type checks only).
   subroutine read_file(self, path, st)
-    class(lj_box_t), intent(inout) :: self
+    class(lj_box_t), intent(inout), target :: self
     character(len=*), intent(in) :: path
     type(status_t), intent(inout) :: st
     character(len=kind_len) :: kind
@@ -507,7 +507,7 @@ contains
   end subroutine energies
 
   function scene_text(self) result(text)
-    class(lj_box_t), intent(in) :: self
+    class(lj_box_t), intent(inout), target :: self
     character(len=:), allocatable :: text
     character(len=1), parameter :: nl = achar(10)
     text = '! resolved scene: kind lj_box (seed 000). '//units//nl//'&scene'//nl

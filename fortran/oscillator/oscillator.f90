@@ -16,8 +16,8 @@ module oscillator
   use errors, only: status_t, set_error, exit_bad_input, exit_io, exit_numerical, msg_len
   use method, only: method_t, fname_len, max_out_files, add_output
   use tables, only: table_t, table_open, table_line, table_flush, table_close, rfmt
-  use scene_input, only: open_scene, group_status, kind_len, check_real, check_int, check_choice, put_real, put_int, &
-       put_str, int_str
+  use scene_input, only: kind_len, int_str, real_str
+  use schema, only: schema_t, max_steps_all
   use ckpt, only: ckpt_writer_t, ckpt_put
   use, intrinsic :: iso_fortran_env, only: int8
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
@@ -27,7 +27,9 @@ module oscillator
   public :: oscillator_t
 
   integer, parameter :: name_len = 32
-  integer(i8), parameter :: max_steps = 4000000000000000000_i8   !< 4e18 < huge(i8)
+  !> The energy of a damped oscillator never grows: a numerical energy above
+  !> this multiple of the initial one is an unstable integration (guard).
+  real(dp), parameter :: max_energy_growth = 1.0e6_dp
 
   type, extends(method_t) :: oscillator_t
     ! &scene
@@ -49,88 +51,119 @@ module oscillator
     real(dp), allocatable :: x(:), v(:), x0(:), v0(:)
     integer(i8) :: step = 0
     integer(i8) :: n_steps = 0
+    real(dp) :: e0 = 0                      !< initial energy [L^2/tau^2] (growth guard)
     type(table_t) :: traj, energy
   contains
-    procedure :: load, read => read_file, scene_text, open_outputs, advance, finish, close_outputs, output_files
+    procedure :: load, keys, open_outputs, advance, finish, close_outputs, output_files
     procedure :: save_state, restore_state, counters, progress_text, json_fields
   end type oscillator_t
 
 contains
 
-  !> Read (read_file), validate and build the initial state.
+  !> The scene of this kind, declared once (module schema): reading,
+  !> validation, scene.nml and `partsim --describe oscillator` come from it.
+  subroutine keys(self, s)
+    class(oscillator_t), intent(inout), target :: self
+    type(schema_t), intent(inout) :: s
+    call s%init('oscillator', 'kind oscillator. Units: length L, time tau (the user''s '// &
+         'choice), unit mass.')
+    call s%group('scene', 'what this scene is', required=.true.)
+    call s%key('kind', self%kind, '', 'the method and system of this scene', choices='oscillator')
+    call s%key('title', self%title, '', 'free text (UTF-8)')
+    call s%group('oscillator', 'the oscillators and their integration')
+    call s%key('n', self%n, '', 'number of oscillators', lo=1_i8, hi=10000000_i8)
+    call s%key('omega', self%omega, 'rad/tau', 'natural angular frequency', lo=0.0_dp, &
+         hi=1.0e6_dp, lo_open=.true.)
+    call s%key('zeta', self%zeta, '1', 'damping ratio (under-damped)', lo=0.0_dp, hi=0.999_dp)
+    call s%key('amplitude', self%amplitude, 'L', 'initial amplitude', lo=0.0_dp, hi=1.0e12_dp, &
+         lo_open=.true.)
+    call s%key('seed', self%seed, '', 'RNG seed of the initial phases', lo=1_i8, &
+         hi=2147483647_i8)
+    call s%key('integrator', self%integrator, '', 'explicit Euler (order 1), velocity '// &
+         'Verlet with exact damping half-steps (order 2, stable for omega dt < 2), or the '// &
+         'analytic propagator', choices='euler|velocity_verlet|exact')
+    call s%key('dt', self%dt, 'tau', 'time step (<= t_end)', lo=0.0_dp, lo_open=.true., &
+         hi=1.0e12_dp)
+    call s%key('t_end', self%t_end, 'tau', 'run length', lo=0.0_dp, hi=1.0e12_dp, &
+         lo_open=.true.)
+    call s%group('output', 'cadences in steps (0 = file off)')
+    call s%key('trajectory_every', self%trajectory_every, 'steps', 'trajectory.dat rows '// &
+         '(0 = off)', lo=0_i8, hi=max_steps_all)
+    call s%key('energy_every', self%energy_every, 'steps', 'energy.dat rows (0 = off)', &
+         lo=0_i8, hi=max_steps_all)
+    call s%key('checkpoint_every', self%checkpoint_every, 'steps', 'checkpoints (0 = only '// &
+         'at step 0)', lo=0_i8, hi=max_steps_all)
+  end subroutine keys
+
+  !> Read, validate and build the initial state.
   subroutine load(self, path, st)
-    class(oscillator_t), intent(inout) :: self
+    class(oscillator_t), intent(inout), target :: self
     character(len=*), intent(in) :: path
     type(status_t), intent(inout) :: st
-    call self%read(path, st)
+    type(schema_t) :: s
+    call self%keys(s)
+    call s%read(path, st)
+    if (st%code /= 0) return
+    call s%validate(path, st)
     if (st%code /= 0) return
     call validate(self, path, st)
     if (st%code /= 0) return
     self%n_steps = nint(self%t_end/self%dt, i8)
     call initial_state(self)
+    self%e0 = total_energy(self)
   end subroutine load
 
-  !> The scene file's groups (no range checks).
-  subroutine read_file(self, path, st)
-    class(oscillator_t), intent(inout) :: self
-    character(len=*), intent(in) :: path
-    type(status_t), intent(inout) :: st
-    character(len=kind_len) :: kind
-    character(len=128) :: title
-    integer(i8) :: n, seed, trajectory_every, energy_every, checkpoint_every
-    real(dp) :: omega, zeta, amplitude, dt, t_end
-    character(len=name_len) :: integrator
-    integer :: u, ios
-    character(len=msg_len) :: iom
-    namelist /scene/ kind, title
-    namelist /oscillator/ n, omega, zeta, amplitude, seed, integrator, dt, t_end
-    namelist /output/ trajectory_every, energy_every, checkpoint_every
-    kind = self%kind; title = self%title
-    n = self%n; omega = self%omega; zeta = self%zeta; amplitude = self%amplitude
-    seed = self%seed; integrator = self%integrator; dt = self%dt; t_end = self%t_end
-    trajectory_every = self%trajectory_every; energy_every = self%energy_every
-    checkpoint_every = self%checkpoint_every
-    call open_scene(path, u, st)
-    if (st%code /= 0) return
-    read(u, nml=scene, iostat=ios, iomsg=iom)
-    call group_status(path, 'scene', ios, iom, .true., st)
-    rewind(u); read(u, nml=oscillator, iostat=ios, iomsg=iom)
-    call group_status(path, 'oscillator', ios, iom, .false., st)
-    rewind(u); read(u, nml=output, iostat=ios, iomsg=iom)
-    call group_status(path, 'output', ios, iom, .false., st)
-    close(u)
-    if (st%code /= 0) return
-    self%kind = kind; self%title = title
-    self%n = n; self%omega = omega; self%zeta = zeta; self%amplitude = amplitude
-    self%seed = seed; self%integrator = integrator; self%dt = dt; self%t_end = t_end
-    self%trajectory_every = trajectory_every; self%energy_every = energy_every
-    self%checkpoint_every = checkpoint_every
-  end subroutine read_file
-
+  !> Rules across keys: the step count, and the step's stability (the
+  !> run must not be accepted to explode: rule 2).
   subroutine validate(self, path, st)
     class(oscillator_t), intent(in) :: self
     character(len=*), intent(in) :: path
     type(status_t), intent(inout) :: st
-    character(len=name_len), parameter :: integrators(3) = [character(len=name_len) :: &
-         'euler', 'velocity_verlet', 'exact']
-    call check_choice(path, 'scene', 'kind', self%kind, ['oscillator'], st)
-    call check_int(path, 'oscillator', 'n', self%n, 1_i8, 10000000_i8, st)
-    call check_real(path, 'oscillator', 'omega', self%omega, 0.0_dp, 1.0e6_dp, .false., st)
-    call check_real(path, 'oscillator', 'zeta', self%zeta, 0.0_dp, 0.999_dp, .true., st)
-    call check_real(path, 'oscillator', 'amplitude', self%amplitude, 0.0_dp, 1.0e12_dp, &
-         .false., st)
-    call check_int(path, 'oscillator', 'seed', self%seed, 1_i8, 2147483647_i8, st)
-    call check_choice(path, 'oscillator', 'integrator', self%integrator, integrators, st)
-    call check_real(path, 'oscillator', 't_end', self%t_end, 0.0_dp, 1.0e12_dp, .false., st)
-    if (st%code /= 0) return
-    call check_real(path, 'oscillator', 'dt', self%dt, 0.0_dp, self%t_end, .false., st)
-    if (st%code /= 0) return
-    if (self%t_end/self%dt > real(max_steps, dp)) call set_error(st, exit_bad_input, &
-         trim(path)//': &oscillator t_end/dt: more than 4e18 steps')
-    call check_int(path, 'output', 'trajectory_every', self%trajectory_every, 0_i8, max_steps, st)
-    call check_int(path, 'output', 'energy_every', self%energy_every, 0_i8, max_steps, st)
-    call check_int(path, 'output', 'checkpoint_every', self%checkpoint_every, 0_i8, max_steps, st)
+    real(dp) :: wh, growth
+    if (self%dt > self%t_end) then
+      call set_error(st, exit_bad_input, trim(path)//': &oscillator dt = '// &
+           real_str(self%dt)//': allowed (0, t_end = '//real_str(self%t_end)//'] [tau]')
+      return
+    end if
+    if (self%t_end/self%dt > real(max_steps_all, dp)) then
+      call set_error(st, exit_bad_input, trim(path)//': &oscillator t_end/dt = '// &
+           real_str(self%t_end/self%dt)//': at most '//int_str(max_steps_all)//' steps')
+      return
+    end if
+    wh = self%omega*self%dt
+    select case (trim(self%integrator))
+    case ('velocity_verlet')
+      if (wh >= 2.0_dp) call set_error(st, exit_bad_input, trim(path)//': &oscillator dt = '// &
+           real_str(self%dt)//': velocity_verlet is unstable for omega dt >= 2 (here '// &
+           real_str(wh)//'): allowed dt < '//real_str(2.0_dp/self%omega)//' tau')
+    case ('euler')
+      growth = log10(euler_radius(wh, self%zeta))*2.0_dp*self%t_end/self%dt
+      if (growth > log10(max_energy_growth)) call set_error(st, exit_bad_input, trim(path)// &
+           ': &oscillator dt = '//real_str(self%dt)//': explicit Euler multiplies the energy '// &
+           'by 10^'//trim(adjustl(fstr(growth)))//' over t_end (spectral radius '// &
+           real_str(euler_radius(wh, self%zeta))//' per step); allowed: growth <= 1e6 '// &
+           '(a smaller dt or t_end, or integrator = ''velocity_verlet'')')
+    end select
   end subroutine validate
+
+  !> Spectral radius of one explicit Euler step of x'' = -w^2 x - 2 zeta w x'
+  !> (wh = omega dt): the amplitude grows by at most this factor per step.
+  pure real(dp) function euler_radius(wh, zeta) result(rho)
+    real(dp), intent(in) :: wh, zeta
+    complex(dp) :: disc, l1, l2
+    real(dp) :: tr, det
+    tr = 2.0_dp - 2.0_dp*zeta*wh
+    det = 1.0_dp - 2.0_dp*zeta*wh + wh**2
+    disc = sqrt(cmplx(tr**2 - 4.0_dp*det, 0.0_dp, dp))
+    l1 = 0.5_dp*(tr + disc)
+    l2 = 0.5_dp*(tr - disc)
+    rho = max(abs(l1), abs(l2))
+  end function euler_radius
+
+  pure real(dp) function total_energy(self) result(e)
+    class(oscillator_t), intent(in) :: self
+    e = 0.5_dp*sum(self%v**2) + 0.5_dp*self%omega**2*sum(self%x**2)
+  end function total_energy
 
   !> x = A cos(phase), v = -A omega sin(phase), phases uniform from the seed.
   subroutine initial_state(self)
@@ -152,30 +185,6 @@ contains
     self%v = self%v0
     self%step = 0
   end subroutine initial_state
-
-  function scene_text(self) result(text)
-    class(oscillator_t), intent(in) :: self
-    character(len=:), allocatable :: text
-    character(len=1), parameter :: nl = achar(10)
-    text = '! resolved scene: kind oscillator. Units: length L, time tau (the user''s '// &
-         'choice), unit mass.'//nl//'&scene'//nl
-    call put_str(text, 'kind', self%kind, '')
-    call put_str(text, 'title', self%title, '')
-    text = text//'/'//nl//'&oscillator'//nl
-    call put_int(text, 'n', self%n, 'oscillators')
-    call put_real(text, 'omega', self%omega, 'rad/tau')
-    call put_real(text, 'zeta', self%zeta, 'damping ratio [1]')
-    call put_real(text, 'amplitude', self%amplitude, 'L')
-    call put_int(text, 'seed', self%seed, 'initial phases')
-    call put_str(text, 'integrator', self%integrator, '')
-    call put_real(text, 'dt', self%dt, 'tau')
-    call put_real(text, 't_end', self%t_end, 'tau')
-    text = text//'/'//nl//'&output'//nl
-    call put_int(text, 'trajectory_every', self%trajectory_every, 'steps (0 = off)')
-    call put_int(text, 'energy_every', self%energy_every, 'steps (0 = off)')
-    call put_int(text, 'checkpoint_every', self%checkpoint_every, 'steps (0 = none)')
-    text = text//'/'//nl
-  end function scene_text
 
   subroutine open_outputs(self, dir, append, st)
     class(oscillator_t), intent(inout) :: self
@@ -259,6 +268,12 @@ contains
       call set_error(st, exit_numerical, 'oscillator: non-finite state at step '// &
            int_str(self%step)//' (dt = '//trim(adjustl(rstr(self%dt)))//' tau; explicit Euler '// &
            'grows as (1 + (omega dt)^2)^(n/2))')
+    else if (total_energy(self) > max_energy_growth*self%e0) then
+      call set_error(st, exit_numerical, 'oscillator: the energy grew '// &
+           trim(adjustl(rstr(total_energy(self)/self%e0)))//'-fold by step '// &
+           int_str(self%step)//' (a damped oscillator''s energy never grows): the '// &
+           trim(self%integrator)//' step is unstable at omega dt = '// &
+           trim(adjustl(rstr(self%omega*self%dt))))
     end if
   end subroutine advance
 
@@ -350,6 +365,12 @@ contains
          '  "units": {"length": "L", "time": "tau", "mass": "1", "energy": "L^2/tau^2"},'// &
          achar(10)
   end function json_fields
+
+  function fstr(v) result(s)
+    real(dp), intent(in) :: v
+    character(len=24) :: s
+    write(s, '(f0.1)') v
+  end function fstr
 
   function rstr(v) result(s)
     real(dp), intent(in) :: v
