@@ -411,7 +411,7 @@ contains
         t = b1//real_str(kk%lo)//', '//real_str(kk%hi)//b2
       end if
     case (t_int8, t_int4)
-      if (kk%ranged) t = 'integers in ['//int_str(kk%ilo)//', '//int_str(kk%ihi)//']'
+      if (kk%ranged) t = '['//int_str(kk%ilo)//', '//int_str(kk%ihi)//']'
     case (t_logical)
       t = '.true. | .false.'
     case (t_str)
@@ -618,8 +618,13 @@ contains
         if (kk%is_array) name = name//'('//int_str(int(e, i8))//')'
         where = trim(path)//': '
         if (kk%line > 0) where = where//'line '//int_str(int(kk%line, i8))//': '
-        call set_error(st, exit_bad_input, where//'&'//trim(kk%group)//' '//name//' = '// &
-             element_text(kk, e)//': allowed '//allowed_text(kk)//unit_note(kk))
+        if (kk%type == t_str) then
+          call set_error(st, exit_bad_input, where//'&'//trim(kk%group)//' '//name//' = '// &
+               element_text(kk, e)//': allowed values '//allowed_text(kk))
+        else
+          call set_error(st, exit_bad_input, where//'&'//trim(kk%group)//' '//name//' = '// &
+               element_text(kk, e)//': allowed range '//allowed_text(kk)//unit_note(kk))
+        end if
         return
       end do
     end do

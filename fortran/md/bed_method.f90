@@ -10,7 +10,8 @@ module bed_method
   use scene_input, only: int_str
   use engine, only: sim_t, sim_load, sim_step, pairs_per_step
   use protocol, only: phase_names
-  use scene, only: scene_text_of => scene_text, scene_read
+  use scene, only: scene_keys
+  use schema, only: schema_t
   use output, only: output_open, output_close, output_flush, output_names, frames_name
   use checkpoint, only: checkpoint_save, checkpoint_restore
   implicit none
@@ -21,7 +22,7 @@ module bed_method
   type, extends(method_t) :: bed_t
     type(sim_t) :: sim
   contains
-    procedure :: load, read => read_file, scene_text, open_outputs, advance, finish, close_outputs, output_files
+    procedure :: load, keys, open_outputs, advance, finish, close_outputs, output_files
     procedure :: save_state, restore_state, counters, progress_text, json_fields
   end type bed_t
 
@@ -39,19 +40,12 @@ contains
     self%progress_every = self%sim%sc%progress_every
   end subroutine load
 
-  !> The scene file as the engine reads it (no range validation).
-  subroutine read_file(self, path, st)
+  !> The bed's scene declaration (module scene), bound to this run's scene.
+  subroutine keys(self, s)
     class(bed_t), intent(inout), target :: self
-    character(len=*), intent(in) :: path
-    type(status_t), intent(inout) :: st
-    call scene_read(path, self%sim%sc, st)
-  end subroutine read_file
-
-  function scene_text(self) result(text)
-    class(bed_t), intent(inout), target :: self
-    character(len=:), allocatable :: text
-    text = scene_text_of(self%sim%sc)
-  end function scene_text
+    type(schema_t), intent(inout) :: s
+    call scene_keys(self%sim%sc, s)
+  end subroutine keys
 
   !> A failed write recorded by the bed's outputs becomes the run's status.
   subroutine output_status(self, st)

@@ -4,7 +4,7 @@ module engine
   use, intrinsic :: iso_fortran_env, only: output_unit
   use kinds, only: dp, i8, pi
   use errors, only: status_t, set_error, exit_numerical, exit_ok, exit_bad_input
-  use scene, only: scene_t, scene_read, scene_validate, scene_write
+  use scene, only: scene_t, scene_read, scene_validate
   use model, only: model_t, model_build, law_dipole, piston_none, piston_prescribed, piston_free
   use state, only: state_t, state_allocate
   use protocol, only: protocol_t, protocol_build, piston_at, phase_names
