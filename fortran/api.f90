@@ -9,7 +9,7 @@ module api
   use engine, only: sim_t, sim_load, sim_forces, sim_step, sim_energy, piston_energy, &
        time_pair_pass
   use model, only: piston_free
-  use runner, only: sim_execute, sim_resume, sim_check, sim_resolve
+  use runner, only: sim_execute, sim_resume, sim_check, sim_resolve, sim_describe, write_text
   use signals, only: install_handlers, restore_handlers
   use protocol, only: piston_at
   use pair_forces, only: dipole_kernel
@@ -17,7 +17,7 @@ module api
   use integrators, only: estimate_velocity, finish_velocity
   implicit none
   private
-  public :: run_scene, resume_run, check_scene, resolve_scene, load_scene, n_particles, get_state, &
+  public :: run_scene, resume_run, check_scene, resolve_scene, describe_scene, load_scene, n_particles, get_state, &
        set_state, compute_forces, &
        advance_steps, piston_state, model_groups, energies, kernel, precision_probe, &
        set_threads, list_audit, protocol_times, set_piston, bench_pairs
@@ -78,6 +78,21 @@ contains
     code = st%code
     message = st%msg
   end subroutine resolve_scene
+
+  !> The declaration of scene kind `kind` written to `outpath`: JSON (as_json /= 0,
+  !> what pyorch checks --set and sweep keys with) or a Markdown table of every key.
+  subroutine describe_scene(kind, as_json, outpath, code, message)
+    character(len=*), intent(in) :: kind, outpath
+    integer, intent(in) :: as_json
+    integer, intent(out) :: code
+    character(len=1024), intent(out) :: message
+    type(status_t) :: st
+    character(len=:), allocatable :: text
+    call sim_describe(kind, as_json /= 0, text, st)
+    if (st%code == 0) call write_text(outpath, text, st)
+    code = st%code
+    message = st%msg
+  end subroutine describe_scene
 
   !> Load and validate a bed scene into the in-memory simulation (writes nothing).
   subroutine load_scene(path, code, message)

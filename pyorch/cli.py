@@ -34,14 +34,26 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--out", type=str, default=None, help="run directory (default runs/out/<scene>)")
     r.add_argument("--overwrite", action="store_true",
                    help="replace a run found in the run directory (its files are removed first)")
-    r.add_argument("--set", dest="overrides", action="append", default=[], metavar="GROUP.KEY=VALUE")
+    set_help = ("override one key: group.key=value (namelist value; string keys take bare "
+                "text; arrays: key(i)=v or 1.0,0.6 or [1.0,0.6]); repeatable. "
+                "'pyorch scene describe KIND' lists the keys")
+    r.add_argument("--set", dest="overrides", action="append", default=[],
+                   metavar="GROUP.KEY=VALUE", help=set_help)
     r.add_argument("--door", choices=["exe", "f2py"], default="exe")
     r.add_argument("--no-plots", action="store_true")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
 
     c = sub.add_parser("check", help="validate a scene through the engine")
     c.add_argument("scene", type=Path)
-    c.add_argument("--set", dest="overrides", action="append", default=[], metavar="GROUP.KEY=VALUE")
+    c.add_argument("--set", dest="overrides", action="append", default=[],
+                   metavar="GROUP.KEY=VALUE", help=set_help)
+
+    sc = sub.add_parser("scene", help="a kind's scene keys: every group and key with its type, "
+                                      "default, allowed values, unit and meaning")
+    sc_sub = sc.add_subparsers(dest="scene_cmd", required=True)
+    de = sc_sub.add_parser("describe", help="print the table of a kind's keys (Markdown)")
+    de.add_argument("kind", help="scene kind: magnet_bed, oscillator, dla, rods, lj_box")
+    de.add_argument("--json", action="store_true", help="the declaration as JSON")
 
     pl = sub.add_parser("plot", help="write the standard figures of a run directory")
     pl.add_argument("run_dir", type=Path)
@@ -104,6 +116,16 @@ def _main(args: argparse.Namespace) -> int:
             info = validate(Scene.read(args.scene).with_overrides(args.overrides))
             extra = f"{info['n_particles']} particles, " if "n_particles" in info else ""
             print(f"ok: {info['kind']}, {extra}{info['n_steps']} steps")
+            return 0
+        if args.cmd == "scene":
+            import json
+
+            from pyorch.scene import describe, schema
+
+            if args.json:
+                print(json.dumps(schema(args.kind), indent=1))
+            else:
+                print(describe(args.kind), end="")
             return 0
         if args.cmd == "sweep":
             from pyorch.sweep import cmd_sweep

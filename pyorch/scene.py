@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import copy
 import functools
+import json
 import math
 import re
 import tempfile
@@ -63,16 +64,47 @@ def resolve_file(path: str | Path) -> f90nml.Namelist:
 
 
 @functools.lru_cache(maxsize=8)
-def default_keys(kind: str = "magnet_bed") -> dict[str, dict[str, Any]]:
-    """group -> key -> default value of a scene kind, as the engine defines them."""
-    from pyorch import kinds
+def schema(kind: str = "magnet_bed") -> dict[str, Any]:
+    """The engine's declaration of a kind's scene (``partsim --schema KIND``).
+
+    ``{"kind", "header", "groups": [{"name", "doc", "keys": [{"name", "type" ('real' |
+    'integer' | 'logical' | 'string'), "size", "array", "default", "unit", "doc", and
+    "lo"/"hi"/"lo_open"/"hi_open" (numbers), "choices"/"strlen" (strings)}]}]}``. The same
+    declaration drives the engine's reader, its validation, scene.nml and the README tables.
+    """
+    from pyorch import _engine, kinds  # compiled module
 
     kinds.get(kind)  # SceneError naming the allowed kinds
     with tempfile.TemporaryDirectory() as tmp:
-        p = Path(tmp) / "kind.nml"
-        p.write_text(f"&scene kind = '{kind}' /\n")
-        nml = resolve_file(p)
-    return {g: dict(v) for g, v in nml.items()}
+        out = Path(tmp) / "schema.json"
+        code, msg = _engine.api.describe_scene(kind, 1, str(out))
+        if code != 0:
+            raise SceneError(_engine_message(msg))
+        return json.loads(out.read_text(encoding="utf-8"))
+
+
+def describe(kind: str = "magnet_bed") -> str:
+    """Every group and key of a kind as a Markdown table (type, default, allowed, unit, meaning)."""
+    from pyorch import _engine, kinds
+
+    kinds.get(kind)
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "keys.md"
+        code, msg = _engine.api.describe_scene(kind, 0, str(out))
+        if code != 0:
+            raise SceneError(_engine_message(msg))
+        return out.read_text(encoding="utf-8")
+
+
+def key_specs(kind: str = "magnet_bed") -> dict[str, dict[str, dict[str, Any]]]:
+    """group -> key -> the key's declaration (see :func:`schema`)."""
+    return {g["name"]: {k["name"]: k for k in g["keys"]} for g in schema(kind)["groups"]}
+
+
+def default_keys(kind: str = "magnet_bed") -> dict[str, dict[str, Any]]:
+    """group -> key -> default value of a scene kind, as the engine declares them."""
+    return {g: {k: spec["default"] for k, spec in keys.items()}
+            for g, keys in key_specs(kind).items()}
 
 
 def _split_key(group: str, key: str, where: str,
@@ -83,21 +115,23 @@ def _split_key(group: str, key: str, where: str,
         raise SceneError(f"{where}: {key!r} is not a key name (expected e.g. n or "
                          f"species_diameter(2))")
     name, idx = m.group(1), (int(m.group(2)) if m.group(2) else None)
-    keys = default_keys(kind).get(group, {})
+    keys = key_specs(kind).get(group, {})
     if name not in keys:
         raise SceneError(f"{where}: unknown key &{group} {name} (keys: {', '.join(keys)})")
-    default = keys[name]
+    spec = keys[name]
     if idx is not None:
-        if not isinstance(default, list):
+        if not spec["array"]:
             raise SceneError(f"{where}: &{group} {name} is not an array")
-        if not 1 <= idx <= len(default):
+        if not 1 <= idx <= spec["size"]:
             raise SceneError(f"{where}: &{group} {name}({idx}): index out of range "
-                             f"[1, {len(default)}]")
+                             f"[1, {spec['size']}]")
     return name, idx
 
 
-def _check_value(value: Any, where: str) -> None:
-    """A value pyorch can write as the namelist value the user meant."""
+def _check_value(value: Any, where: str, spec: Mapping[str, Any] | None = None,
+                 idx: int | None = None) -> None:
+    """A value pyorch can write as the namelist value the user meant: its type and count
+    those of the key's declaration (``spec``); ranges are the engine's (:func:`validate`)."""
     items = value if isinstance(value, list) else [value]
     if not items:
         raise SceneError(f"{where}: no value")
@@ -109,24 +143,41 @@ def _check_value(value: Any, where: str) -> None:
         if not isinstance(v, (bool, int, float, str)):
             raise SceneError(f"{where}: {v!r} is not a namelist value "
                              f"(number, logical or string)")
+    if spec is None:
+        return
+    room = spec["size"] - (idx - 1 if idx else 0)
+    if len(items) > room:
+        raise SceneError(f"{where}: {len(items)} values for {spec['name']}"
+                         f"{f'({idx})' if idx else ''}: at most {room}")
+    ty = spec["type"]
+    for v in items:
+        ok = {"integer": isinstance(v, int) and not isinstance(v, bool),
+              "real": isinstance(v, (int, float)) and not isinstance(v, bool),
+              "logical": isinstance(v, bool),
+              "string": isinstance(v, str)}[ty]
+        if not ok:
+            want = {"integer": "an integer", "real": "a number", "logical": ".true. or .false.",
+                    "string": "a string"}[ty]
+            raise SceneError(f"{where}: {v!r}: {spec['name']} must be {want}")
+        if ty == "string" and len(v) > spec.get("strlen", len(v)):
+            raise SceneError(f"{where}: {v!r}: longer than {spec['strlen']} characters")
 
 
 def _check_group(group: str, kind: str, where: str) -> None:
-    from pyorch import kinds
-
-    allowed = kinds.get(kind).groups
+    allowed = list(key_specs(kind))
     if group not in allowed:
         raise SceneError(f"{where}: unknown group &{group} for kind {kind!r} "
                          f"(allowed: {', '.join(allowed)})")
 
 
 def parse_override(text: str, kind: str = "magnet_bed") -> tuple[str, str, Any]:
-    """Parse ``group.key=value`` or ``group.key(i)=value`` (value in Fortran
-    namelist syntax: one value, or a comma-separated list for an array).
+    """Parse ``group.key=value`` or ``group.key(i)=value``: one value in namelist syntax,
+    a comma-separated list (or ``[a, b]``) for an array; a string key also takes its text
+    bare, as users type it (``scene.title=it's a test``).
 
     >>> parse_override("particles.n=92")
     ('particles', 'n', 92)
-    >>> parse_override("physics.wall_law='infinite'")
+    >>> parse_override("physics.wall_law=infinite")
     ('physics', 'wall_law', 'infinite')
     """
     where = f"--set {text!r}"
@@ -136,13 +187,20 @@ def parse_override(text: str, kind: str = "magnet_bed") -> tuple[str, str, Any]:
     group, key = (s.strip().lower() for s in lhs.split(".", 1))
     _check_group(group, kind, where)
     name, idx = _split_key(group, key, where, kind)
-    tokens = _tokens(value, where)
-    try:
-        nml = f90nml.reads(f"&{group}\n {name} = {', '.join(tokens)}\n/\n")
-    except Exception as exc:  # f90nml raises several types on bad syntax
-        raise SceneError(f"{where}: cannot parse value {value!r}: {exc}") from exc
-    parsed = nml[group][name]
-    _check_value(parsed, where)
+    spec = key_specs(kind)[group][name]
+    raw = value.strip()
+    if spec["type"] == "string" and raw and raw[0] not in "'\"":
+        parsed: Any = raw                      # a bare string: the text as typed
+    else:
+        if raw.startswith("[") and raw.endswith("]"):
+            raw = raw[1:-1]
+        tokens = _tokens(raw, where)
+        try:
+            nml = f90nml.reads(f"&{group}\n {name} = {', '.join(tokens)}\n/\n")
+        except Exception as exc:  # f90nml raises several types on bad syntax
+            raise SceneError(f"{where}: cannot parse value {value!r}: {exc}") from exc
+        parsed = nml[group][name]
+    _check_value(parsed, where, spec, idx)
     return group, key, parsed
 
 
@@ -151,12 +209,14 @@ def _tokens(value: str, where: str) -> list[str]:
     plain value (a '/', '&', '!', '=', a repeat count, an empty value) is refused."""
     rest, out = value.strip(), []
     if not rest:
-        raise SceneError(f"{where}: no value (give a value, e.g. particles.n=92)")
+        raise SceneError(f"{where}: no value (give a value, e.g. particles.n=92; a list as "
+                         f"1.0,0.6 or [1.0,0.6])")
     while rest:
         m = _TOKEN.match(rest)
         if not m:
             raise SceneError(f"{where}: {value!r} is not one value or a comma-separated list "
-                             f"of values (no '/', '&', '!', '=' or r*value outside quotes)")
+                             f"of values (write e.g. 92, 0.5, .true., 'text' or 1.0,0.6; no "
+                             f"'/', '&', '!', '=' or r*value outside quotes)")
         out.append(m.group(1))
         rest = rest[m.end():].strip()
         if m.group(2) == "," and not rest:
@@ -220,8 +280,8 @@ class Scene:
                     raise SceneError(f"{where}: expected 'group.key'")
                 group, key = (s.strip() for s in dotted.lower().split(".", 1))
                 _check_group(group, kind, where)
-                _split_key(group, key, where, kind)
-                _check_value(value, where)
+                name, idx = _split_key(group, key, where, kind)
+                _check_value(value, where, key_specs(kind)[group][name], idx)
                 new.set(group, key, value)
         else:
             for text in overrides:

@@ -24,7 +24,7 @@ module runner
   implicit none
   private
 
-  public :: sim_execute, sim_resume, sim_check, sim_resolve, sim_describe
+  public :: sim_execute, sim_resume, sim_check, sim_resolve, sim_describe, write_text
 
   character(len=*), parameter :: ckpt_name = 'checkpoint.bin'
   character(len=*), parameter :: ckpt_failed = 'checkpoint_failed.bin'
