@@ -8,6 +8,7 @@ import subprocess
 from pathlib import Path
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -206,3 +207,67 @@ def test_both_doors_read_a_file_alike_or_refuse_it_alike(tmp_path_factory, text)
         return
     assert py_msg is None
     assert resolve_file(sc.write(tmp / "back.nml")) == resolve_file(path)
+
+
+# ---- every kind's declaration (issue #25): values drawn from the schema ------------------
+
+SCHEMA_KINDS = ["dla", "lj_box", "magnet_bed", "oscillator", "rods"]
+
+
+def _value_for(spec: dict, draw) -> str:
+    """A namelist value for a declared key: in range, at an edge, beyond it, or of a wrong type."""
+    ty = spec["type"]
+    wrong = draw(st.sampled_from(["NaN", "'text'", ".true.", "1.5", "-Inf", "1e999", "7", "",
+                                  "2*1", "'a''b'"]))
+    if draw(st.integers(0, 3)) == 0:
+        return wrong
+    if ty == "integer":
+        lo, hi = spec["lo"], spec["hi"]
+        return str(draw(st.sampled_from([lo, hi, lo - 1, hi + 1, 0, 1, 10**12, -1])))
+    if ty == "real":
+        cands = [0.0, -1.0, 1e-300, 1e300, 0.5, 2.0, 1e-3, 50.0]
+        cands += [spec[b] for b in ("lo", "hi") if b in spec]
+        return repr(float(draw(st.sampled_from(cands))))
+    if ty == "logical":
+        return draw(st.sampled_from([".true.", ".false.", "T", "F"]))
+    choices = spec.get("choices") or ["x", "a long title " * 20]
+    return "'" + draw(st.sampled_from(choices + ["nonsense"])).replace("'", "''") + "'"
+
+
+@st.composite
+def schema_scene(draw, kind: str) -> str:
+    """&scene kind = KIND / and up to three of the kind's groups, each with 1-3 drawn keys
+    (sometimes an index, in or out of range)."""
+    from pyorch.scene import schema
+
+    groups = [g for g in schema(kind)["groups"] if g["name"] != "scene"]
+    parts = [f"&scene kind = '{kind}' /"]
+    for g in draw(st.lists(st.sampled_from(groups), max_size=3, unique_by=lambda g: g["name"])):
+        body = []
+        for k in draw(st.lists(st.sampled_from(g["keys"]), min_size=1, max_size=3,
+                               unique_by=lambda k: k["name"])):
+            name = k["name"]
+            if k["array"] and draw(st.booleans()):
+                name += f"({draw(st.integers(0, k['size'] + 1))})"
+            body.append(f"{name} = {_value_for(k, draw)}")
+        parts.append(f"&{g['name']} " + ", ".join(body) + " /")
+    return "\n".join(parts) + "\n"
+
+
+@pytest.mark.parametrize("kind", SCHEMA_KINDS)
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.data())
+def test_every_kinds_declared_keys_fuzzed_refuse_cleanly(tmp_path_factory, kind, data):
+    """Random values (in range, at and beyond the edges, of wrong types) for every kind's declared
+    keys: --check accepts or refuses with one clean line naming the file, never a crash."""
+    text = data.draw(schema_scene(kind))
+    tmp = tmp_path_factory.mktemp("schema")
+    path = tmp / "s.nml"
+    path.write_text(text)
+    proc = subprocess.run([str(engine_executable()), str(path), "--check"], capture_output=True,
+                          text=True, errors="replace", timeout=30)
+    for mark in CRASH_MARKS + ("Cannot match namelist",):
+        assert mark not in proc.stderr, proc.stderr
+    assert proc.returncode in (0, 2), (proc.returncode, proc.stderr)
+    if proc.returncode == 2:
+        assert str(path) in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
