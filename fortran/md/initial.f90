@@ -4,6 +4,7 @@
 module initial
   use kinds, only: dp, pi
   use errors, only: status_t, set_error, exit_bad_input
+  use scene_input, only: real_str
   use scene, only: scene_t
   use model, only: model_t
   use state, only: state_t, state_allocate
@@ -165,6 +166,8 @@ contains
       s%x(k) = margin + (i + 0.5_dp)*sx + sc%jitter*sx*(2*u(1) - 1)
       s%y(k) = margin + (j + 0.5_dp)*sy + sc%jitter*sy*(2*u(2) - 1)
     end do
+    call check_grid_distances(sc, s, nc, sx, sy, path, st)
+    if (st%code /= 0) return
     do k = 1, sc%n
       call random_number(u(1))
       ang = 2*pi*u(1)
@@ -175,5 +178,61 @@ contains
     s%yp = s%y
     s%has_previous = .false.
   end subroutine place_particles
+
+  !> The start grid must respect the closest-approach guard (&physics min_distance): a jittered
+  !> slot's near neighbours are the slots next to it (same row, row above), so the closest pair
+  !> is found in O(N). Refused naming the placement keys and the largest jitter that is safe
+  !> for this grid (spacing (1 - 2 jitter) >= min_distance), instead of a crush at step 0.
+  subroutine check_grid_distances(sc, s, nc, sx, sy, path, st)
+    type(scene_t), intent(in) :: sc
+    type(state_t), intent(in) :: s
+    integer, intent(in) :: nc
+    real(dp), intent(in) :: sx, sy     !< grid spacing [D1]
+    character(len=*), intent(in) :: path
+    type(status_t), intent(inout) :: st
+    integer :: k, l, m, ia, ib
+    real(dp) :: d2, best, jmax
+    integer, parameter :: offs(4) = [1, 0, 1, 2]   ! (slot + 1), row above: -1, 0, +1
+    character(len=100) :: buf
+    if (sc%min_distance <= 0) return
+    best = huge(1.0_dp)
+    ia = 0
+    ib = 0
+    do k = 1, sc%n
+      do m = 1, 4
+        if (m == 1) then
+          if (mod(k, nc) == 0) cycle          ! last slot of its row
+          l = k + 1
+        else
+          l = k + nc + offs(m) - 1
+          if (offs(m) == 0 .and. mod(k - 1, nc) == 0) cycle   ! no slot to the left
+          if (offs(m) == 2 .and. mod(k, nc) == 0) cycle       ! no slot to the right
+        end if
+        if (l > sc%n) cycle
+        d2 = (s%x(k) - s%x(l))**2 + (s%y(k) - s%y(l))**2
+        if (d2 < best) then
+          best = d2
+          ia = k
+          ib = l
+        end if
+      end do
+    end do
+    if (ia == 0) return
+    if (sqrt(best) >= sc%min_distance) return
+    jmax = max(0.0_dp, 0.5_dp*(1.0_dp - sc%min_distance/min(sx, sy)))
+    write(buf, '(a,i0,a,i0,a)') ': the start grid places particles ', ia, ' and ', ib, ' '
+    call set_error(st, exit_bad_input, trim(path)//': &particles jitter = '// &
+         real_str(sc%jitter)//trim(buf)//' '//r4(sqrt(best))//' D1 apart, closer than '// &
+         '&physics min_distance = '//r4(sc%min_distance)//' D1 (grid spacing '//r4(sx)//' x '// &
+         r4(sy)//' D1): with this n and cell, jitter <= '//r4(jmax)//' keeps every pair '// &
+         'apart; or lower &particles n, raise &cell width/height, &protocol h_start or '// &
+         '&particles fill_height')
+  contains
+    function r4(x) result(t)
+      real(dp), intent(in) :: x
+      character(len=:), allocatable :: t
+      t = real_str(anint(x*1.0e4_dp)/1.0e4_dp)
+    end function r4
+  end subroutine check_grid_distances
 
 end module initial

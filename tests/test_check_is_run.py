@@ -1,0 +1,37 @@
+"""What `check` accepts, the run accepts; what fails is named by its cause (issue #29)."""
+from __future__ import annotations
+
+import subprocess
+from pathlib import Path
+
+import pytest
+
+from pyorch import SceneError
+from pyorch.run import engine_executable
+from pyorch.scene import Scene, validate
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def partsim(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([str(engine_executable()), *args], capture_output=True, text=True,
+                          errors="replace", timeout=120)
+
+
+def test_a_start_grid_closer_than_min_distance_is_refused_at_check_naming_the_placement(tmp_path):
+    """n = 3700, jitter = 0.45 once passed check and stopped at step 0 blaming the piston."""
+    sc = Scene.read(ROOT / "runs/demo.nml").with_overrides({"particles.n": 3700,
+                                                            "particles.jitter": 0.45})
+    with pytest.raises(SceneError, match=r"&particles jitter = 0.45: the start grid places "
+                                         r"particles \d+ and \d+ 0\.\d+ D1 apart, closer than "
+                                         r"&physics min_distance = 0.5 D1 .*jitter <= 0\.26"):
+        validate(sc)
+    path = sc.write(tmp_path / "s.nml")
+    p = partsim(str(path), "--out", str(tmp_path / "o"), "--quiet")
+    assert p.returncode == 2 and not (tmp_path / "o").exists()
+    # the jitter the message names as safe runs: check and the first steps agree
+    ok = sc.with_overrides({"particles.jitter": 0.26, "protocol.t_relax": 1.0})
+    validate(ok)
+    p = partsim(str(ok.write(tmp_path / "ok.nml")), "--out", str(tmp_path / "ok"), "--quiet",
+                "--stop-at", "50")
+    assert p.returncode == 0, p.stderr
