@@ -106,7 +106,7 @@ class Config:
 
 FULL = Config("full", sizes=(92, 184, 276, 368, 460, 552, 644, 736), seeds=(1, 2, 3),
               seeds_368=(1, 2, 3), t52_sizes=(368, 552), t52_seeds=(1, 2, 3),
-              bi_r=(0.0, 0.1, 0.3, 0.5, 0.7, 0.9, 1.0), bi_seeds=(1, 2), bi_speed_mm_s=1.0,
+              bi_r=(0.0, 0.1, 1 / 3, 0.5, 2 / 3, 0.9, 1.0), bi_seeds=(1, 2), bi_speed_mm_s=1.0,
               conv_steps=(4e-3, 1e-3, 2.5e-4, 6.25e-5),
               reductions={"size": "Verlet 4.13 + frozen tail, not O(N^2)",
                           "t52": "N = 368, 552 only", "bi": "7 R values, 2 seeds"})

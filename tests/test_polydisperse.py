@@ -49,6 +49,7 @@ def test_final_height_reproduces_table_a1(door, make_scene, api, system):
         d = door(make_scene("bidisperse/a060", {
             "material.diameter": d1, "particles.species_diameter": [1.0, a],
             "particles.mix_ratio": r, "protocol.hf_reference": h_r,
+            "particles.placement": "random",   # R exact: the table's R are not all 1/k
             "protocol.piston_speed": v_c, "cell.width": 0.33 / d1, "cell.height": 0.445 / d1,
             "protocol.h_start": 0.445 / d1, "protocol.h0": 0.445 / d1}))
         h_start, h0, hf, t_relax, t_comp, t_total = api.protocol_times()
@@ -58,16 +59,46 @@ def test_final_height_reproduces_table_a1(door, make_scene, api, system):
             assert t_si == pytest.approx(T_A1[system], rel=1e-9)
 
 
-@pytest.mark.parametrize("r,every,small_is", [(0.3, 3, 2), (0.25, 4, 2), (0.7, 3, 1), (0.8, 5, 1)])
+@pytest.mark.parametrize("r,every,small_is", [(1 / 3, 3, 2), (0.25, 4, 2), (2 / 3, 3, 1),
+                                              (0.8, 5, 1), (0.1, 10, 2)])
 def test_interleaving_rule(door, make_scene, r, every, small_is):
     """§4.2.2: R < 1/2: every floor(1/R)-th particle is small; R > 1/2: every
-    floor(1/(1-R))-th is big."""
+    floor(1/(1-R))-th is big (R = 2/3 in binary is floor 3, not 2)."""
     d = door(make_scene("bidisperse/a060", {"particles.mix_ratio": r}))
     sp = d.state()["species"]
     k = np.arange(1, len(sp) + 1)
     marked = (k % every) == 0
     assert np.all(sp[marked] == small_is)
     assert np.all(sp[~marked] == 3 - small_is)
+
+
+@pytest.mark.parametrize("r,near", [(0.3, r"nearest 0.25 and 0.3333"), (0.4, r"nearest 0.3333 "
+                                   r"and 0.5"), (0.45, r"would place 200 of 400 .*\(R = 0.5\)"),
+                                   (0.7, r"nearest 0.6667 and 0.75")])
+def test_a_mix_ratio_the_interleaving_rule_cannot_place_is_refused(make_scene, r, near):
+    """The rule reaches only R = 1/k and 1 - 1/k: mix_ratio = 0.4 once ran a 50 % bed while
+    scene.nml said 0.4 (the thesis' own R = 0.3, 0.45 and 0.55 beds were 1/3, 1/2 and 1/2)."""
+    from pyorch import SceneError
+    from pyorch.scene import validate
+
+    with pytest.raises(SceneError, match=rf"&particles mix_ratio = {r}: placement = 'interleave'"
+                                         rf".*{near}"):
+        validate(make_scene("bidisperse/a060", {"particles.mix_ratio": r}))
+    validate(make_scene("bidisperse/a060", {"particles.mix_ratio": r,
+                                            "particles.placement": "random"}))
+
+
+def test_run_json_states_the_species_counts(make_scene, tmp_path):
+    from pyorch.run import run
+    from pyorch.scene import Scene
+
+    sc = Scene.read(make_scene("bidisperse/a060", {"particles.mix_ratio": 0.25,
+                                                   "protocol.piston": "fixed",
+                                                   "protocol.t_end": 0.01}))
+    run(sc, tmp_path / "r", progress=False)
+    import json
+    meta = json.loads((tmp_path / "r" / "run.json").read_text())
+    assert meta["species_counts"] == [300, 100]
 
 
 def test_half_mixture_alternates(door, make_scene):

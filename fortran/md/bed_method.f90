@@ -159,6 +159,7 @@ contains
     character(len=1), parameter :: nl = achar(10)
     associate (m => self%sim%m, sim => self%sim)
       text = '  "n_particles": '//int_str(int(sim%s%n, i8))//','//nl// &
+           '  "species_counts": '//counts()//','//nl// &
            '  "list_builds": '//int_str(sim%nl%builds)//','//nl// &
            '  "pairs_per_step": '//int_str(pairs_per_step(sim))//','//nl// &
            '  "pair_evaluations": '//int_str(sim%nl%evaluated)//','//nl// &
@@ -175,6 +176,17 @@ contains
            '  },'//nl
     end associate
   contains
+    !> Particles placed of each species (the composition realised), e.g. [200, 200].
+    function counts() result(t)
+      character(len=:), allocatable :: t
+      integer :: k
+      t = '['
+      do k = 1, self%sim%m%n_species
+        if (k > 1) t = t//', '
+        t = t//int_str(int(count(self%sim%s%species(1:self%sim%s%n) == k), i8))
+      end do
+      t = t//']'
+    end function counts
     function r(v) result(t)
       real(dp), intent(in) :: v
       character(len=:), allocatable :: t

@@ -29,10 +29,10 @@ contains
     else if (r == 0.5_dp) then
       s = merge(1, 2, mod(k, 2) == 1)
     else if (r < 0.5_dp) then
-      every = int(1.0_dp/r)
+      every = int(1.0_dp/r*(1.0_dp + 1.0e-12_dp))   ! R = 1/3 written in binary: floor 3, not 2
       s = merge(2, 1, mod(k, every) == 0)
     else
-      every = int(1.0_dp/(1.0_dp - r))
+      every = int(1.0_dp/(1.0_dp - r)*(1.0_dp + 1.0e-12_dp))
       s = merge(1, 2, mod(k, every) == 0)
     end if
   end function species_of
@@ -124,6 +124,8 @@ contains
       s%species = perm
     else if (sc%n_species == 2) then
       s%species = [(species_of(k, sc%mix_ratio), k = 1, sc%n)]   ! thesis rule, §4.2.2
+      call check_realised_ratio(sc, count(s%species == 2), path, st)
+      if (st%code /= 0) return
     else if (sc%n_species > 2) then
       call interleave(frac, s%species)
     else
@@ -178,6 +180,47 @@ contains
     s%yp = s%y
     s%has_previous = .false.
   end subroutine place_particles
+
+  !> The thesis' interleaving rule (every floor(1/R)-th particle of species 2) reaches only
+  !> R = 1/k and 1 - 1/k: a mix_ratio it cannot realise (e.g. 0.4 -> 0.5) is refused naming the
+  !> nearest reachable ratios, instead of running another composition than the scene states.
+  subroutine check_realised_ratio(sc, n2, path, st)
+    type(scene_t), intent(in) :: sc
+    integer, intent(in) :: n2               !< particles of species 2 placed
+    character(len=*), intent(in) :: path
+    type(status_t), intent(inout) :: st
+    real(dp) :: r, lo, hi
+    integer :: k
+    r = sc%mix_ratio
+    if (abs(real(n2, dp) - r*sc%n) <= 1.0_dp) return
+    if (r < 0.5_dp) then
+      k = int(1.0_dp/r*(1.0_dp + 1.0e-12_dp))
+      lo = 1.0_dp/real(k + 1, dp)
+      hi = 1.0_dp/real(k, dp)
+    else
+      k = int(1.0_dp/(1.0_dp - r)*(1.0_dp + 1.0e-12_dp))
+      lo = 1.0_dp - 1.0_dp/real(k, dp)
+      hi = 1.0_dp - 1.0_dp/real(k + 1, dp)
+    end if
+    call set_error(st, exit_bad_input, trim(path)//': &particles mix_ratio = '//real_str(r)// &
+         ': placement = ''interleave'' (the thesis'' rule, every floor(1/R)-th particle small, '// &
+         '4.2.2) would place '//i2s(n2)//' of '//i2s(sc%n)//' particles of species 2 (R = '// &
+         r4(real(n2, dp)/sc%n)//'); it reaches R = 1/k and 1 - 1/k: nearest '//r4(lo)//' and '// &
+         r4(hi)//'; placement = ''random'' places exactly round(R n) for any R')
+  contains
+    function i2s(i) result(t)
+      integer, intent(in) :: i
+      character(len=:), allocatable :: t
+      character(len=12) :: b
+      write(b, '(i0)') i
+      t = trim(b)
+    end function i2s
+    function r4(x) result(t)
+      real(dp), intent(in) :: x
+      character(len=:), allocatable :: t
+      t = real_str(anint(x*1.0e4_dp)/1.0e4_dp)
+    end function r4
+  end subroutine check_realised_ratio
 
   !> The start grid must respect the closest-approach guard (&physics min_distance): a jittered
   !> slot's near neighbours are the slots next to it (same row, row above), so the closest pair
