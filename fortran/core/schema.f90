@@ -35,6 +35,7 @@ module schema
   integer(i8), parameter :: max_steps_all = 1000000000000_i8
 
   integer, parameter :: name_len = 32
+  integer, parameter :: max_keys = 256, max_groups = 24   !< per kind
   integer, parameter :: t_real = 1, t_int8 = 2, t_int4 = 3, t_logical = 4, t_str = 5
   character(len=*), parameter :: type_names(5) = [character(len=7) :: 'real', 'integer', &
        'integer', 'logical', 'string']
@@ -80,8 +81,8 @@ module schema
   contains
     procedure :: init
     procedure :: group => add_group
-    generic :: key => key_r, key_ra, key_i8, key_i8a, key_i4, key_i4a, key_l, key_la, key_c
-    procedure, private :: key_r, key_ra, key_i8, key_i8a, key_i4, key_i4a, key_l, key_la, key_c
+    generic :: key => key_scalar, key_array
+    procedure, private :: key_scalar, key_array
     procedure :: read => schema_read
     procedure :: validate => schema_validate
     procedure :: text => schema_text
@@ -104,7 +105,7 @@ contains
     s%header = header
     s%nk = 0
     s%ng = 0
-    allocate(s%keys(64), s%groups(12))
+    allocate(s%keys(max_keys), s%groups(max_groups))
   end subroutine init
 
   !> A namelist group; the keys declared next belong to it.
@@ -112,12 +113,7 @@ contains
     class(schema_t), intent(inout) :: s
     character(len=*), intent(in) :: name, doc
     logical, intent(in), optional :: required
-    type(group_t), allocatable :: tmp(:)
-    if (s%ng == size(s%groups)) then
-      allocate(tmp(2*s%ng))
-      tmp(1:s%ng) = s%groups(1:s%ng)
-      call move_alloc(tmp, s%groups)
-    end if
+    if (s%ng == size(s%groups)) error stop 'schema: more than max_groups groups'
     s%ng = s%ng + 1
     s%groups(s%ng)%name = name
     s%groups(s%ng)%doc = doc
@@ -130,12 +126,7 @@ contains
     character(len=*), intent(in) :: name, unit, doc
     integer, intent(in) :: type, n
     integer :: k
-    type(key_t), allocatable :: tmp(:)
-    if (s%nk == size(s%keys)) then
-      allocate(tmp(2*s%nk))
-      tmp(1:s%nk) = s%keys(1:s%nk)
-      call move_alloc(tmp, s%keys)
-    end if
+    if (s%nk == size(s%keys)) error stop 'schema: more than max_keys keys'
     s%nk = s%nk + 1
     k = s%nk
     s%keys(k)%group = s%groups(s%ng)%name
@@ -149,149 +140,114 @@ contains
     s%keys(k)%given = .false.
   end function new_key
 
-  subroutine set_rrange(kk, lo, hi, lo_open, hi_open)
-    type(key_t), intent(inout) :: kk
-    real(dp), intent(in), optional :: lo, hi
+  !> A key bound to scalar `v` (real(dp), integer, integer(i8), logical or character).
+  !> lo, hi: the range (of v's type; reals open at an end with lo_open/hi_open); choices:
+  !> 'a|b|c' for a string key (otherwise free text).
+  subroutine key_scalar(s, name, v, unit, doc, lo, hi, lo_open, hi_open, choices)
+    class(schema_t), intent(inout) :: s
+    character(len=*), intent(in) :: name, unit, doc
+    class(*), intent(inout), target :: v
+    class(*), intent(in), optional :: lo, hi
     logical, intent(in), optional :: lo_open, hi_open
-    kk%ranged = .true.
-    kk%lo = -huge(1.0_dp)
-    kk%hi = huge(1.0_dp)
-    if (present(lo)) kk%lo = lo
-    if (present(hi)) kk%hi = hi
-    if (present(lo_open)) kk%lo_open = lo_open
-    if (present(hi_open)) kk%hi_open = hi_open
-  end subroutine set_rrange
-
-  subroutine set_irange(kk, lo, hi, full)
-    type(key_t), intent(inout) :: kk
-    integer(i8), intent(in), optional :: lo, hi
-    integer(i8), intent(in) :: full
-    kk%ranged = .true.
-    kk%ilo = -full
-    kk%ihi = full
-    if (present(lo)) kk%ilo = lo
-    if (present(hi)) kk%ihi = hi
-  end subroutine set_irange
-
-  subroutine key_r(s, name, v, unit, doc, lo, hi, lo_open, hi_open)
-    class(schema_t), intent(inout) :: s
-    character(len=*), intent(in) :: name, unit, doc
-    real(dp), intent(inout), target :: v
-    real(dp), intent(in), optional :: lo, hi
-    logical, intent(in), optional :: lo_open, hi_open
-    integer :: k
-    k = new_key(s, name, t_real, 1, unit, doc)
-    call c_f_pointer(c_loc(v), s%keys(k)%r, [1])
-    call set_rrange(s%keys(k), lo, hi, lo_open, hi_open)
-    s%keys(k)%default = value_text(s%keys(k))
-  end subroutine key_r
-
-  subroutine key_ra(s, name, v, unit, doc, lo, hi, lo_open, hi_open, size_key)
-    class(schema_t), intent(inout) :: s
-    character(len=*), intent(in) :: name, unit, doc
-    real(dp), intent(inout), target, contiguous :: v(:)
-    real(dp), intent(in), optional :: lo, hi
-    logical, intent(in), optional :: lo_open, hi_open
-    character(len=*), intent(in), optional :: size_key
-    integer :: k
-    k = new_key(s, name, t_real, size(v), unit, doc)
-    s%keys(k)%is_array = .true.
-    s%keys(k)%r => v
-    call set_rrange(s%keys(k), lo, hi, lo_open, hi_open)
-    if (present(size_key)) s%keys(k)%size_key = size_key
-    s%keys(k)%default = value_text(s%keys(k))
-  end subroutine key_ra
-
-  subroutine key_i8(s, name, v, unit, doc, lo, hi)
-    class(schema_t), intent(inout) :: s
-    character(len=*), intent(in) :: name, unit, doc
-    integer(i8), intent(inout), target :: v
-    integer(i8), intent(in), optional :: lo, hi
-    integer :: k
-    k = new_key(s, name, t_int8, 1, unit, doc)
-    call c_f_pointer(c_loc(v), s%keys(k)%i8v, [1])
-    call set_irange(s%keys(k), lo, hi, huge(1_i8))
-    s%keys(k)%default = value_text(s%keys(k))
-  end subroutine key_i8
-
-  subroutine key_i8a(s, name, v, unit, doc, lo, hi, size_key)
-    class(schema_t), intent(inout) :: s
-    character(len=*), intent(in) :: name, unit, doc
-    integer(i8), intent(inout), target, contiguous :: v(:)
-    integer(i8), intent(in), optional :: lo, hi
-    character(len=*), intent(in), optional :: size_key
-    integer :: k
-    k = new_key(s, name, t_int8, size(v), unit, doc)
-    s%keys(k)%is_array = .true.
-    s%keys(k)%i8v => v
-    call set_irange(s%keys(k), lo, hi, huge(1_i8))
-    if (present(size_key)) s%keys(k)%size_key = size_key
-    s%keys(k)%default = value_text(s%keys(k))
-  end subroutine key_i8a
-
-  subroutine key_i4(s, name, v, unit, doc, lo, hi)
-    class(schema_t), intent(inout) :: s
-    character(len=*), intent(in) :: name, unit, doc
-    integer, intent(inout), target :: v
-    integer(i8), intent(in), optional :: lo, hi
-    integer :: k
-    k = new_key(s, name, t_int4, 1, unit, doc)
-    call c_f_pointer(c_loc(v), s%keys(k)%i4v, [1])
-    call set_irange(s%keys(k), lo, hi, int(huge(1), i8))
-    s%keys(k)%default = value_text(s%keys(k))
-  end subroutine key_i4
-
-  subroutine key_i4a(s, name, v, unit, doc, lo, hi, size_key)
-    class(schema_t), intent(inout) :: s
-    character(len=*), intent(in) :: name, unit, doc
-    integer, intent(inout), target, contiguous :: v(:)
-    integer(i8), intent(in), optional :: lo, hi
-    character(len=*), intent(in), optional :: size_key
-    integer :: k
-    k = new_key(s, name, t_int4, size(v), unit, doc)
-    s%keys(k)%is_array = .true.
-    s%keys(k)%i4v => v
-    call set_irange(s%keys(k), lo, hi, int(huge(1), i8))
-    if (present(size_key)) s%keys(k)%size_key = size_key
-    s%keys(k)%default = value_text(s%keys(k))
-  end subroutine key_i4a
-
-  subroutine key_l(s, name, v, unit, doc)
-    class(schema_t), intent(inout) :: s
-    character(len=*), intent(in) :: name, unit, doc
-    logical, intent(inout), target :: v
-    integer :: k
-    k = new_key(s, name, t_logical, 1, unit, doc)
-    call c_f_pointer(c_loc(v), s%keys(k)%lv, [1])
-    s%keys(k)%default = value_text(s%keys(k))
-  end subroutine key_l
-
-  subroutine key_la(s, name, v, unit, doc, size_key)
-    class(schema_t), intent(inout) :: s
-    character(len=*), intent(in) :: name, unit, doc
-    logical, intent(inout), target, contiguous :: v(:)
-    character(len=*), intent(in), optional :: size_key
-    integer :: k
-    k = new_key(s, name, t_logical, size(v), unit, doc)
-    s%keys(k)%is_array = .true.
-    s%keys(k)%lv => v
-    if (present(size_key)) s%keys(k)%size_key = size_key
-    s%keys(k)%default = value_text(s%keys(k))
-  end subroutine key_la
-
-  !> A string key; `choices` ('a|b|c') makes it a choice, otherwise free text.
-  subroutine key_c(s, name, v, unit, doc, choices)
-    class(schema_t), intent(inout) :: s
-    character(len=*), intent(in) :: name, unit, doc
-    character(len=*), intent(inout), target :: v
     character(len=*), intent(in), optional :: choices
     integer :: k
-    k = new_key(s, name, t_str, 1, unit, doc)
-    s%keys(k)%c => v
-    s%keys(k)%strlen = len(v)
-    if (present(choices)) s%keys(k)%choices = '|'//choices//'|'
-    s%keys(k)%default = value_text(s%keys(k))
-  end subroutine key_c
+    select type (v)
+    type is (real(dp))
+      k = new_key(s, name, t_real, 1, unit, doc)
+      call c_f_pointer(c_loc(v), s%keys(k)%r, [1])
+    type is (integer(i8))
+      k = new_key(s, name, t_int8, 1, unit, doc)
+      call c_f_pointer(c_loc(v), s%keys(k)%i8v, [1])
+    type is (integer)
+      k = new_key(s, name, t_int4, 1, unit, doc)
+      call c_f_pointer(c_loc(v), s%keys(k)%i4v, [1])
+    type is (logical)
+      k = new_key(s, name, t_logical, 1, unit, doc)
+      call c_f_pointer(c_loc(v), s%keys(k)%lv, [1])
+    type is (character(len=*))
+      k = new_key(s, name, t_str, 1, unit, doc)
+      s%keys(k)%c => v
+      s%keys(k)%strlen = len(v)
+      if (present(choices)) s%keys(k)%choices = '|'//choices//'|'
+    class default
+      error stop 'schema: a key of a type the reader does not know'
+    end select
+    call finish_key(s%keys(k), lo, hi, lo_open, hi_open)
+  end subroutine key_scalar
+
+  !> A key bound to array `v`; size_key: the integer key of the same group holding the
+  !> elements in use (scene.nml writes those).
+  subroutine key_array(s, name, v, unit, doc, lo, hi, lo_open, hi_open, size_key)
+    class(schema_t), intent(inout) :: s
+    character(len=*), intent(in) :: name, unit, doc
+    class(*), intent(inout), target, contiguous :: v(:)
+    class(*), intent(in), optional :: lo, hi
+    logical, intent(in), optional :: lo_open, hi_open
+    character(len=*), intent(in), optional :: size_key
+    integer :: k
+    select type (v)
+    type is (real(dp))
+      k = new_key(s, name, t_real, size(v), unit, doc)
+      s%keys(k)%r => v
+    type is (integer(i8))
+      k = new_key(s, name, t_int8, size(v), unit, doc)
+      s%keys(k)%i8v => v
+    type is (integer)
+      k = new_key(s, name, t_int4, size(v), unit, doc)
+      s%keys(k)%i4v => v
+    type is (logical)
+      k = new_key(s, name, t_logical, size(v), unit, doc)
+      s%keys(k)%lv => v
+    class default
+      error stop 'schema: an array key of a type the reader does not know'
+    end select
+    s%keys(k)%is_array = .true.
+    if (present(size_key)) s%keys(k)%size_key = size_key
+    call finish_key(s%keys(k), lo, hi, lo_open, hi_open)
+  end subroutine key_array
+
+  !> The range of a new key (numbers: the whole type when not given) and its default text.
+  subroutine finish_key(kk, lo, hi, lo_open, hi_open)
+    type(key_t), intent(inout) :: kk
+    class(*), intent(in), optional :: lo, hi
+    logical, intent(in), optional :: lo_open, hi_open
+    select case (kk%type)
+    case (t_real)
+      kk%ranged = .true.
+      kk%lo = -huge(1.0_dp)
+      kk%hi = huge(1.0_dp)
+      if (present(lo)) kk%lo = as_real(lo)
+      if (present(hi)) kk%hi = as_real(hi)
+      if (present(lo_open)) kk%lo_open = lo_open
+      if (present(hi_open)) kk%hi_open = hi_open
+    case (t_int8, t_int4)
+      kk%ranged = .true.
+      kk%ihi = huge(1_i8)
+      if (kk%type == t_int4) kk%ihi = int(huge(1), i8)
+      kk%ilo = -kk%ihi
+      if (present(lo)) kk%ilo = as_int(lo)
+      if (present(hi)) kk%ihi = as_int(hi)
+    end select
+    kk%default = value_text(kk)
+  contains
+    real(dp) function as_real(x)
+      class(*), intent(in) :: x
+      select type (x)
+      type is (real(dp)); as_real = x
+      type is (integer); as_real = x
+      type is (integer(i8)); as_real = real(x, dp)
+      class default; error stop 'schema: a real range that is not a number'
+      end select
+    end function as_real
+    integer(i8) function as_int(x)
+      class(*), intent(in) :: x
+      select type (x)
+      type is (integer); as_int = x
+      type is (integer(i8)); as_int = x
+      class default; error stop 'schema: an integer range that is not an integer'
+      end select
+    end function as_int
+  end subroutine finish_key
 
   ! ---------------------------------------------------------------- queries
 

@@ -2,9 +2,9 @@
 !> filling the cell below the piston, random velocity directions, species
 !> assigned by the thesis' interleaving rule or at random. Seeded RNG.
 module initial
-  use kinds, only: dp, pi
+  use kinds, only: dp, pi, i8
   use errors, only: status_t, set_error, exit_bad_input
-  use scene_input, only: real_str
+  use scene_input, only: real_str, int_str
   use scene, only: scene_t
   use model, only: model_t
   use state, only: state_t, state_allocate
@@ -204,22 +204,9 @@ contains
     end if
     call set_error(st, exit_bad_input, trim(path)//': &particles mix_ratio = '//real_str(r)// &
          ': placement = ''interleave'' (the thesis'' rule, every floor(1/R)-th particle small, '// &
-         '4.2.2) would place '//i2s(n2)//' of '//i2s(sc%n)//' particles of species 2 (R = '// &
+         '4.2.2) would place '//int_str(int(n2, i8))//' of '//int_str(int(sc%n, i8))//' particles of species 2 (R = '// &
          r4(real(n2, dp)/sc%n)//'); it reaches R = 1/k and 1 - 1/k: nearest '//r4(lo)//' and '// &
          r4(hi)//'; placement = ''random'' places exactly round(R n) for any R')
-  contains
-    function i2s(i) result(t)
-      integer, intent(in) :: i
-      character(len=:), allocatable :: t
-      character(len=12) :: b
-      write(b, '(i0)') i
-      t = trim(b)
-    end function i2s
-    function r4(x) result(t)
-      real(dp), intent(in) :: x
-      character(len=:), allocatable :: t
-      t = real_str(anint(x*1.0e4_dp)/1.0e4_dp)
-    end function r4
   end subroutine check_realised_ratio
 
   !> The start grid must respect the closest-approach guard (&physics min_distance): a jittered
@@ -270,12 +257,13 @@ contains
          r4(sy)//' D1): with this n and cell, jitter <= '//r4(jmax)//' keeps every pair '// &
          'apart; or lower &particles n, raise &cell width/height, &protocol h_start or '// &
          '&particles fill_height')
-  contains
-    function r4(x) result(t)
-      real(dp), intent(in) :: x
-      character(len=:), allocatable :: t
-      t = real_str(anint(x*1.0e4_dp)/1.0e4_dp)
-    end function r4
   end subroutine check_grid_distances
+
+  !> x rounded to 4 decimals, as messages show it.
+  function r4(x) result(t)
+    real(dp), intent(in) :: x
+    character(len=:), allocatable :: t
+    t = real_str(anint(x*1.0e4_dp)/1.0e4_dp)
+  end function r4
 
 end module initial
