@@ -101,7 +101,9 @@ def _main(args: argparse.Namespace) -> int:
         if args.cmd == "check":
             from pyorch.scene import Scene, validate
 
-            info = validate(Scene.read(args.scene).with_overrides(args.overrides))
+            scene = Scene.read(args.scene)  # the engine's reading: SceneError if refused
+            # the user's file as it is unless --set changes it (then pyorch writes it again)
+            info = validate(scene.with_overrides(args.overrides) if args.overrides else args.scene)
             extra = f"{info['n_particles']} particles, " if "n_particles" in info else ""
             print(f"ok: {info['kind']}, {extra}{info['n_steps']} steps")
             return 0

@@ -59,7 +59,10 @@ def resolve_file(path: str | Path) -> f90nml.Namelist:
         code, msg = _engine.api.resolve_scene(str(path), str(out))
         if code != 0:
             raise SceneError(_engine_message(msg))
-        return f90nml.read(str(out))
+        # the engine passes a string's bytes on as they are (a latin-1 title, say): keep
+        # them, whatever the locale (Scene.write refuses to write them back as escapes)
+        with open(out, encoding="utf-8", errors="surrogateescape") as fh:
+            return f90nml.read(fh)
 
 
 @functools.lru_cache(maxsize=8)
@@ -136,6 +139,11 @@ def parse_override(text: str, kind: str = "magnet_bed") -> tuple[str, str, Any]:
     group, key = (s.strip().lower() for s in lhs.split(".", 1))
     _check_group(group, kind, where)
     name, idx = _split_key(group, key, where, kind)
+    from pyorch.values import bare_string, is_string_key
+
+    if idx is None and is_string_key(default_keys(kind), group, name) \
+            and (bare := bare_string(value)) is not None:
+        return group, key, bare  # a string-typed key takes the value as typed
     tokens = _tokens(value, where)
     try:
         nml = f90nml.reads(f"&{group}\n {name} = {', '.join(tokens)}\n/\n")
@@ -240,6 +248,9 @@ class Scene:
 
     def write(self, path: str | Path) -> Path:
         """Write the namelist (overwrites)."""
+        from pyorch.values import check_writable
+
+        check_writable(self.groups, self.label())
         path = Path(path)
         self.namelist().write(str(path), force=True)
         return path
