@@ -493,6 +493,8 @@ class Sweep:
         function (default :func:`run_point`, same signature, must not raise).
         Writes manifest.json first and results.csv (+ .parquet) at the end.
         """
+        if client is None and not scheduler_address and cluster == "slurm":
+            check_slurm_config(cluster_kwargs)  # before anything is written
         self.write_manifest()
         pts = self.points()
         metrics = metrics or self.metrics
@@ -559,10 +561,47 @@ def _make_cluster(kind: str, n_workers: int | None, kwargs: Mapping[str, Any], n
     if kind == "slurm":
         from dask_jobqueue import SLURMCluster
 
-        slurm = SLURMCluster(**kwargs)
+        check_slurm_config(kwargs)
+        try:
+            slurm = SLURMCluster(**kwargs)
+        except ValueError as exc:  # dask-jobqueue's word on a setting it cannot use
+            raise SceneError(f"--cluster slurm: dask-jobqueue refused the Slurm settings: "
+                             f"{' '.join(str(exc).split())} ({_slurm_config_hint()})") from None
         slurm.scale(_slurm_workers(n_workers, n_points))
         return slurm
     raise ValueError(f"cluster must be 'local' or 'slurm', got {kind!r}")
+
+
+#: the jobqueue.slurm settings a SLURMCluster cannot do without
+SLURM_REQUIRED = ("cores", "memory")
+
+
+def _slurm_config_hint() -> str:
+    """Where the dask config of ``--cluster slurm`` comes from and how to give it."""
+    import dask.config
+
+    where = ", ".join(dask.config.paths)
+    return (f"dask reads its config from the YAML files in {where}; copy "
+            f"runs/sweeps/slurm_example.yaml to ~/.config/dask/jobqueue.yaml and set "
+            f"queue/account/walltime there, or point the environment variable DASK_CONFIG at a "
+            f"folder holding such a file (examples/slurm for scripts/slurm_local.sh)")
+
+
+def check_slurm_config(kwargs: Mapping[str, Any] | None = None) -> None:
+    """SceneError naming the missing ``jobqueue.slurm`` keys, the config files and the
+    environment variable when the dask config (or ``kwargs``, SLURMCluster's own
+    arguments) does not say how large a job is."""
+    import dask.config
+    import dask_jobqueue  # noqa: F401 - loads its defaults into the dask config
+
+    kwargs = kwargs or {}
+    missing = [k for k in SLURM_REQUIRED
+               if kwargs.get(k) is None and dask.config.get(f"jobqueue.slurm.{k}", None) is None]
+    if missing:
+        keys = " and ".join(f"jobqueue.slurm.{k}" for k in missing)
+        raise SceneError(f"--cluster slurm: the dask config does not give {keys} (a job's "
+                         f"cores and memory, e.g. cores: 1, memory: \"2GiB\"): "
+                         f"{_slurm_config_hint()}")
 
 
 class _JobKeeper:
