@@ -11,7 +11,7 @@ Spec file (TOML; relative paths are relative to the TOML file)::
 
     base = "../standard.nml"          # base scene (namelist)
     out = "../out/sweeps/speeds"      # sweep directory (default <base dir>/out/sweeps/<toml stem>)
-    seeds = [1, 2, 3]                 # replicates -> particles.seed
+    seeds = [1, 2, 3]                 # replicates -> the kind's seed key (bed: particles.seed)
     [grid]                            # cartesian product of these values
     "protocol.piston_speed" = [0.02321773, 0.03435234, 0.1]
     [set]                             # fixed overrides for every point
@@ -99,7 +99,7 @@ else:  # pragma: no cover - Python 3.10
 MetricFn = Callable[[Any], Mapping[str, Any]]
 TaskFn = Callable[..., dict]
 
-SEED_KEY = "particles.seed"
+SEED_KEY = "particles.seed"  # the bed's; every kind declares its own (pyorch.kinds.Kind.seed_key)
 MANIFEST = "manifest.json"
 RESULTS = "results"
 STALE_GRACE_S = 30.0  # s: a 'running' run.json younger than this may belong to a dying engine
@@ -388,8 +388,10 @@ class Sweep:
     """A base scene, a grid and/or list of override points, replicate seeds, fixed overrides.
 
     Points are the product (points x grid x seeds); every point gets the fixed
-    overrides, then its own values, then ``particles.seed``. ``out`` is the
-    sweep directory (default ``<base dir>/out/sweeps/<base stem>``).
+    overrides, then its own values, then its seed as the kind's seed key (``seed_key``:
+    magnet_bed and lj_box ``particles.seed``, dla ``disks.seed``, rods ``rods.seed``,
+    oscillator ``oscillator.seed``). ``out`` is the sweep directory (default
+    ``<base dir>/out/sweeps/<base stem>``).
     """
 
     def __init__(self, base: str | Path, grid: Mapping[str, Sequence[Any]] | None = None,
@@ -398,8 +400,12 @@ class Sweep:
                  out: str | Path | None = None) -> None:
         from pyorch.scene import Scene
 
+        from pyorch import kinds
+
         self.base = Path(os.path.abspath(base))
         self.scene = Scene.read(self.base)
+        #: the override key that ``seeds`` set: the base scene's kind declares it
+        self.seed_key = kinds.get(str(self.scene.get("scene", "kind", "magnet_bed"))).seed_key
         self.grid = _check_keys(grid or {}, "grid")
         for key, values in self.grid.items():
             if isinstance(values, (str, bytes)) or not isinstance(values, Sequence) or not values:
@@ -407,8 +413,9 @@ class Sweep:
         self.point_specs = [_check_keys(p, f"points[{i}]") for i, p in enumerate(points or [])]
         self.seeds = [int(s) for s in seeds] if seeds is not None else None
         self.fixed = _check_keys(fixed or {}, "set")
-        if self.seeds is not None and (SEED_KEY in self.grid or any(SEED_KEY in p for p in self.point_specs)):
-            raise SceneError(f"{SEED_KEY} is given both in seeds and in grid/points")
+        key = self.seed_key
+        if self.seeds is not None and (key in self.grid or any(key in p for p in self.point_specs)):
+            raise SceneError(f"{key} is given both in seeds and in grid/points")
         self.out = Path(os.path.abspath(out)) if out else self.base.parent / "out" / "sweeps" / self.base.stem
         self.metrics: MetricFn | None = None   # default: the kind's default_metrics; TOML key 'metrics'
 
@@ -435,7 +442,7 @@ class Sweep:
             if k not in keys:
                 keys.append(k)
         if self.seeds is not None:
-            keys.append(SEED_KEY)
+            keys.append(self.seed_key)
         return keys
 
     def _overrides(self) -> list[dict[str, Any]]:
@@ -447,7 +454,7 @@ class Sweep:
         for spec, combo, seed in itertools.product(specs, combos, seeds):
             ov = {**self.fixed, **spec, **dict(zip(self.grid, combo))}
             if seed is not None:
-                ov[SEED_KEY] = seed
+                ov[self.seed_key] = seed
             result.append(ov)
         return result
 
