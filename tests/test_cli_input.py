@@ -128,3 +128,44 @@ def test_source_tree_without_any_engine_says_what_to_do(tmp_path: Path) -> None:
     last = res.stderr.strip().splitlines()[-1]
     assert last.startswith("ImportError: pyorch._engine, the compiled engine, is not built")
     assert "scripts/setup.sh" in last and str(tree / "pyorch") in last
+
+
+# ------------------------------------------------------------------ bare strings in --set
+@pytest.mark.parametrize("typed, meant", [
+    ("it's a test", "it's a test"),          # a bare string, as users type it
+    ("T", "T"),                              # not the logical .true.
+    ("42", "42"),                            # not the integer
+    ("a, b / c ! d & e = f", "a, b / c ! d & e = f"),
+    ("  padded  ", "padded"),
+    ("'it''s quoted'", "it's quoted"),       # a namelist string in quotes: as the engine reads it
+    ('"double ""quoted"""', 'double "quoted"'),
+])
+def test_bare_string_for_a_string_key(typed: str, meant: str) -> None:
+    """A string-typed key takes what is typed after '=' as the string (it used to be refused
+    unless quoted for the namelist); quoted values keep the namelist reading."""
+    from pyorch.scene import parse_override
+
+    assert parse_override(f"scene.title={typed}", "oscillator") == ("scene", "title", meant)
+
+
+def test_bare_string_is_written_quoted_and_reaches_the_engine(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``--set scene.title=it's a test`` was refused; now the run's resolved scene holds that
+    title, quoted with the quote doubled, as the engine read it back."""
+    from pyorch.scene import Scene
+
+    out = tmp_path / "run"
+    argv = ["run", str(RUNS / "oscillator.nml"), "--out", str(out), "--quiet", "--no-plots",
+            "--set", "scene.title=it's a test", "--set", "oscillator.integrator=exact",
+            "--set", "oscillator.t_end=0.01"]
+    assert main(argv) == 0, capsys.readouterr().err
+    text = (out / "scene.nml").read_text(encoding="utf-8")
+    assert "title = 'it''s a test'" in text and "integrator = 'exact'" in text
+    assert Scene.read(out / "scene.nml").get("scene", "title") == "it's a test"
+
+
+def test_other_keys_keep_the_namelist_syntax(capsys: pytest.CaptureFixture[str]) -> None:
+    """Only string keys take a bare string: a word for an integer is still bad input."""
+    assert main(["check", str(RUNS / "oscillator.nml"), "--set", "oscillator.n=many"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("pyorch: error: ") and "&oscillator" in err and err.count("\n") == 1
