@@ -27,7 +27,8 @@ error; ``pyorch run`` uses it when a scene sets ``&integration
 target_rel_error``.
 
 Reproduce: ``pyorch bench trade`` (about 10 minutes on one core), outputs in
-bench/results/: trade.csv, trade_pareto.png; ``pyorch bench bias`` for the
+runs/out/bench/ (``--out DIR`` elsewhere; ``--update-shipped`` replaces the shipped tables
+in bench/results/, which ``target_rel_error`` chooses from): trade.csv, trade_pareto.png; ``pyorch bench bias`` for the
 truncation bias vs r_c (bias.csv, bias.png); ``pyorch bench seeds --seeds 64
 --workers 2`` for the seed-averaged bias of the production settings with
 standard errors and 95 % intervals (seeds.csv, seeds.png), which is what
@@ -440,8 +441,38 @@ def bias_summary_text(table: pd.DataFrame) -> str:
     return "\n".join(lines)
 
 
+#: where ``pyorch bench`` writes by default (a user's measurement; relative to the working dir)
+USER_OUT = Path("runs") / "out" / "bench"
+#: the shipped tables (``target_rel_error`` chooses from trade.csv and seeds.csv here)
+SHIPPED_OUT = Path("bench") / "results"
+
+
+def bench_out(out: Path | None, update_shipped: bool, quick: bool) -> Path:
+    """Directory of a ``pyorch bench`` study: ``out``, else USER_OUT; SHIPPED_OUT only with
+    ``update_shipped``, never for a ``quick`` smoke test (SceneError otherwise, before
+    anything is run or written)."""
+    from pyorch import SceneError
+
+    if update_shipped:
+        if out is not None:
+            raise SceneError("pyorch bench: --update-shipped writes bench/results: no --out")
+        if quick:
+            raise SceneError("pyorch bench: --quick measures 4 settings only, a smoke test: "
+                             "its table cannot replace the shipped one (no --update-shipped)")
+        return SHIPPED_OUT
+    if out is None:
+        return USER_OUT
+    shipped = {SHIPPED_OUT.resolve(), PACKAGED_TABLE.parent.resolve()}
+    if out.resolve() in shipped:
+        raise SceneError(f"pyorch bench: --out {out} holds the shipped tables that "
+                         f"target_rel_error chooses from: write them with --update-shipped "
+                         f"(a full study), or choose another directory")
+    return out
+
+
 def main_bench(args: Any) -> int:
-    out = Path(args.out)
+    out = bench_out(getattr(args, "out", None), getattr(args, "update_shipped", False),
+                    getattr(args, "quick", False))
     out.mkdir(parents=True, exist_ok=True)
     seeds = list(range(1, args.seeds + 1))
     if args.what == "trade":

@@ -6,7 +6,8 @@
     pyorch check SCENE.nml [--set ...]
     pyorch plot RUN_DIR [--out DIR] [--no-structure]
     pyorch analyze RUN_DIR [--out DIR]
-    pyorch bench trade|bias|seeds [--scene S] [--seeds N] [--quick] [--workers W] [--out DIR]
+    pyorch bench trade|bias|seeds [--scene S] [--seeds N] [--quick] [--workers W]
+                 [--out DIR | --update-shipped]
     pyorch sweep SWEEP.toml [--workers N] [--scheduler ADDR] [--cluster local|slurm]
     pyorch dataset gns SPEC.toml [--workers N] [--scheduler ADDR] [--dry-run]
     pyorch dataset check DATASET_DIR
@@ -78,7 +79,11 @@ def _parser() -> argparse.ArgumentParser:
                    help="engine processes at once (errors only: times are then contended)")
     b.add_argument("--reuse", type=Path, default=None,
                    help="rows CSV of an earlier study of the scene: completed runs are kept")
-    b.add_argument("--out", type=Path, default=Path("bench/results"))
+    b.add_argument("--out", type=Path, default=None,
+                   help="where the tables, figures and runs go (default runs/out/bench)")
+    b.add_argument("--update-shipped", action="store_true",
+                   help="write the shipped tables in bench/results (target_rel_error chooses "
+                        "from them; not with --quick)")
     return p
 
 
