@@ -68,3 +68,53 @@ def test_rods_with_history_keeps_every_figure(tmp_path: Path,
     assert capsys.readouterr().err == ""
     assert {p.name for p in (out / "plots").iterdir()} == {"distributions.png", "history.png"}
     assert (out / "analysis" / "steady_state.csv").is_file()
+
+
+# ------------------------------------------------------------- the single-particle bounce
+def test_single_particle_plot_and_analyze(tmp_path: Path,
+                                          capsys: pytest.CaptureFixture[str]) -> None:
+    """pyorch plot / analyze of the single-particle scene crashed with a traceback (a Voronoi
+    tessellation needs 3 points). Now the structure part is skipped with one line, the summary
+    is written, and the run gets its bounce figure: height against time."""
+    import matplotlib.pyplot as plt
+
+    from pyorch import io
+    from pyorch.bed.plots import height_vs_time
+
+    out = tmp_path / "run"
+    assert main(["run", str(RUNS / "single_particle.nml"), "--out", str(out), "--quiet",
+                 "--set", "protocol.t_end=10.0"]) == 0
+    assert (out / "plots" / "height_vs_t.png").is_file()
+    capsys.readouterr()
+    assert main(["plot", str(out)]) == 0
+    cap = capsys.readouterr()
+    assert cap.err == (f"pyorch analyze: {out}: 1 particle: no Voronoi, Psi6 or force structure "
+                       f"figures (they need at least 3 particles): skipped\n")
+    assert str(out / "plots" / "height_vs_t.png") in cap.out.splitlines()
+    assert not list((out / "plots").glob("voronoi_*.png"))
+    assert main(["analyze", str(out)]) == 0
+    assert capsys.readouterr().err == (f"pyorch analyze: {out}: 1 particle: no Voronoi, Psi6 or "
+                                       f"force structure (they need at least 3 particles): "
+                                       f"skipped\n")
+    summary = (out / "analysis" / "summary.csv").read_text().splitlines()
+    assert summary[:2] == ["quantity,value", "N,1.0"]
+    # the figure is y(t) of the frames: the fall from 10 D1 and the bounce back up
+    fr = io.frames(out)
+    fig = height_vs_time(fr)
+    (line,) = fig.axes[0].get_lines()
+    assert list(line.get_xdata()) == list(fr["t"]) and list(line.get_ydata()) == list(fr["y"])
+    y = fr["y"].to_numpy()
+    lowest = int(y.argmin())
+    assert y[0] == 10.0 and 0.5 < y[lowest] < 5.0 and y[lowest:].max() > 9.9
+    plt.close(fig)
+
+
+def test_one_particle_sweep_metrics_are_nan_not_an_error(tmp_path: Path) -> None:
+    """The bed's sweep metrics of a run with fewer than 3 particles: the order parameters are
+    NaN (no tessellation), not a 'metrics failed' message."""
+    from pyorch.bed.metrics import _frame_metrics_near
+    from pyorch.run import run
+
+    r = run(RUNS / "single_particle.nml", tmp_path / "run", progress=False,
+            overrides={"protocol.t_end": 1.0})
+    assert _frame_metrics_near(r, 0) == {}

@@ -40,8 +40,9 @@ Tables of :func:`analyze_run` (lengths D1, times T, forces m1 g):
     compression"), and at that frame ``n_interior``, ``n_le4``, ``n5``, ``n6``, ``n7``, ``n_ge8``,
     ``Psi6``, ``Psi6_local``, ``R6_mean``, ``R6_std``, ``delta``.
 
-Without particles.dat only the summary is produced, from piston.dat and mean_distance.dat (a message
-on stderr says so). The across-run table of :mod:`pyorch.bed.structure_plots` (one row per run, columns
+Without particles.dat, or with fewer than 3 particles (no Voronoi tessellation: the single-particle
+scene), only the summary is produced, from piston.dat and mean_distance.dat (a message on stderr
+says so). The across-run table of :mod:`pyorch.bed.structure_plots` (one row per run, columns
 ``R``, ``a``, ``n5``, ``n6``, ``n7``, ``Psi6``, ``F_max``, ...) is
 ``pd.DataFrame([analyze_run(d)["summary"] for d in run_dirs])``.
 """
@@ -66,6 +67,19 @@ Tables = dict[str, "pd.DataFrame | pd.Series"]
 
 def _say(msg: str) -> None:
     print(f"pyorch analyze: {msg}", file=sys.stderr)
+
+
+STRUCTURE_SKIPPED = (f"no Voronoi, Psi6 or force structure (they need at least "
+                     f"{analysis.MIN_VORONOI_POINTS} particles): skipped")
+
+
+def n_particles(frames: pd.DataFrame) -> int:
+    """The most particles in any frame of a long frames table (0 when empty)."""
+    return int(frames.groupby("step").size().max()) if not frames.empty else 0
+
+
+def _few(n: int) -> str:
+    return f"{n} particle" + ("" if n == 1 else "s")
 
 
 def run_geometry(run_dir: str | Path) -> dict[str, Any]:
@@ -236,6 +250,12 @@ def analyze_run(run_dir: str | Path, *, vectors: bool = True) -> Tables:
         _say(f"{run_dir}: no particle frames (particles.dat): structure analysis skipped")
         tables["summary"] = pd.Series(summary, dtype=float, name=run_dir.name)
         return tables
+    n_max = n_particles(fr)
+    if n_max < analysis.MIN_VORONOI_POINTS:
+        _say(f"{run_dir}: {_few(n_max)}: {STRUCTURE_SKIPPED}")
+        summary["N"] = float(n_max)
+        tables["summary"] = pd.Series(summary, dtype=float, name=run_dir.name)
+        return tables
     steps = np.sort(fr["step"].unique())
     head = fr.groupby("step", sort=True)["t"].first().rename("t_frame").reset_index()
     if pis is not None:
@@ -314,6 +334,11 @@ def plot_run(run_dir: str | Path, out: str | Path | None = None,
     if not io.has_frames(run_dir):
         _say(f"{run_dir}: no particles.dat: structure figures skipped")
         return []
+    if tables is None:
+        n_max = n_particles(io.frames(run_dir))
+        if n_max < analysis.MIN_VORONOI_POINTS:
+            _say(f"{run_dir}: {_few(n_max)}: {STRUCTURE_SKIPPED.replace('structure', 'structure figures')}")
+            return []
     tables = analyze_run(run_dir) if tables is None else tables
     if "time_series" not in tables:
         _say(f"{run_dir}: no particle frames: structure figures skipped")
