@@ -104,14 +104,7 @@ def _main(args: argparse.Namespace) -> int:
         if args.cmd == "run":
             return _cmd_run(args)
         if args.cmd == "check":
-            from pyorch.scene import Scene, validate
-
-            scene = Scene.read(args.scene)  # the engine's reading: SceneError if refused
-            # the user's file as it is unless --set changes it (then pyorch writes it again)
-            info = validate(scene.with_overrides(args.overrides) if args.overrides else args.scene)
-            extra = f"{info['n_particles']} particles, " if "n_particles" in info else ""
-            print(f"ok: {info['kind']}, {extra}{info['n_steps']} steps")
-            return 0
+            return _cmd_check(args)
         if args.cmd == "sweep":
             from pyorch.sweep import cmd_sweep
 
@@ -153,6 +146,40 @@ def _main(args: argparse.Namespace) -> int:
         print(f"pyorch: error: {exc}", file=sys.stderr)
         return exc.code
     return 1
+
+
+def _cmd_check(args: argparse.Namespace) -> int:
+    """Validate through the engine; with ``target_rel_error`` also the setting it would
+    choose (as ``pyorch run`` does) and the run-time estimate of the scene at that setting."""
+    from pyorch.bench import overrides_for, run_time_estimate, target_choice
+    from pyorch.scene import Scene, validate
+
+    scene = Scene.read(args.scene)  # the engine's reading: SceneError if refused
+    if args.overrides:
+        scene = scene.with_overrides(args.overrides)
+    choice = target_choice(scene)
+    if choice is not None:
+        scene = scene.with_overrides(overrides_for(choice.row))
+    # the user's file as it is unless pyorch changes it (then pyorch writes it again)
+    info = validate(scene if args.overrides or choice else args.scene)
+    extra = f"{info['n_particles']} particles, " if "n_particles" in info else ""
+    print(f"ok: {info['kind']}, {extra}{info['n_steps']} steps")
+    if choice is not None:
+        print(choice.text())
+        est = run_time_estimate(choice.row, int(info.get("n_particles", 0)), int(info["n_steps"]))
+        print(f"estimated run time: {_duration(est)} at {choice.row['label']} (its time per step on "
+              f"the trade scene, scaled to {info.get('n_particles')} particles: one core of the "
+              f"machine that measured the table)")
+    return 0
+
+
+def _duration(seconds: float) -> str:
+    """A wall time for people: 42 s, 3.5 min, 2.1 h."""
+    if seconds < 120:
+        return f"{seconds:.3g} s"
+    if seconds < 7200:
+        return f"{seconds / 60:.3g} min"
+    return f"{seconds / 3600:.3g} h"
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
