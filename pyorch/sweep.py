@@ -5,7 +5,8 @@ directory with a stable name made of its varying parameters and a short hash of
 the base scene and of all its overrides, e.g.
 ``piston_speed=0.5_seed=3-1a2b3c4d``. The points are written to
 ``manifest.json`` before anything runs; the results (one row per point) to
-``results.csv`` (and ``results.parquet`` when pyarrow is importable).
+``results.csv``, units in the column names, ``F_max[m1*g]`` (:func:`read_results` reads it
+back), and ``results.parquet`` when pyarrow is importable.
 
 Spec file (TOML; relative paths are relative to the TOML file)::
 
@@ -519,14 +520,44 @@ class Sweep:
             extra = {k: v for k, v in row.items() if k not in ("name", "dir")}
             table.append({"name": p["name"], **{k: p[k] for k in keys}, **extra, "dir": p["dir"]})
         df = pd.DataFrame(table)
-        write_results(df, self.out)
+        write_results(df, self.out, self.result_units())
         return df
 
+    def result_units(self) -> dict[str, str]:
+        """Units of the results' columns: wall_time_s [s] and, with the kind's default metrics,
+        the kind's ``METRIC_UNITS`` (as in its .dat files). The parameters' units are the
+        scene's (scene.nml of each point)."""
+        units = dict(TASK_UNITS)
+        if self.metrics is None:
+            from pyorch import kinds
 
-def write_results(df: pd.DataFrame, out: Path) -> list[Path]:
-    """results.csv (always) and results.parquet (if pyarrow is importable) in ``out``."""
+            kind = str(self.scene.get("scene", "kind", "magnet_bed"))
+            units.update(getattr(kinds.plugin(kind), "METRIC_UNITS", {}))
+        return units
+
+
+#: units of the columns every task row has (see :func:`run_point`)
+TASK_UNITS = {"wall_time_s": "s"}
+
+
+def read_results(path: str | Path) -> pd.DataFrame:
+    """A sweep's results.csv (or its directory): bare column names, the units of the columns
+    that have one in ``df.attrs["units"]`` (the file's header reads ``F_max[m1*g]``)."""
+    from pyorch.csvunits import read_csv
+
+    path = Path(path)
+    return read_csv(path / f"{RESULTS}.csv" if path.is_dir() else path)
+
+
+def write_results(df: pd.DataFrame, out: Path,
+                  units: Mapping[str, str] | None = None) -> list[Path]:
+    """results.csv (always; ``units`` in the column names, ``F_max[m1*g]``, read back with
+    :func:`read_results`) and results.parquet (if pyarrow is importable, bare names) in
+    ``out``."""
+    from pyorch.csvunits import write_csv
+
     paths = [out / f"{RESULTS}.csv"]
-    df.to_csv(paths[0], index=False)
+    write_csv(df, paths[0], units or TASK_UNITS)
     if importlib.util.find_spec("pyarrow") is not None:
         try:
             flat = df.map(lambda v: _canonical(v) if isinstance(v, (list, dict)) else v)

@@ -67,7 +67,8 @@ def test_rods_with_history_keeps_every_figure(tmp_path: Path,
     assert main(["analyze", str(out)]) == 0
     assert capsys.readouterr().err == ""
     assert {p.name for p in (out / "plots").iterdir()} == {"distributions.png", "history.png"}
-    assert (out / "analysis" / "steady_state.csv").is_file()
+    header = (out / "analysis" / "steady_state.csv").read_text().splitlines()[0]
+    assert header == "quantity,dsmc,exact,difference,unit"
 
 
 # ------------------------------------------------------------- the single-particle bounce
@@ -97,7 +98,7 @@ def test_single_particle_plot_and_analyze(tmp_path: Path,
                                        f"force structure (they need at least 3 particles): "
                                        f"skipped\n")
     summary = (out / "analysis" / "summary.csv").read_text().splitlines()
-    assert summary[:2] == ["quantity,value", "N,1.0"]
+    assert summary[:2] == ["quantity,value,unit", "N,1.0,"]
     # the figure is y(t) of the frames: the fall from 10 D1 and the bounce back up
     fr = io.frames(out)
     fig = height_vs_time(fr)

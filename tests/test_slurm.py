@@ -40,7 +40,7 @@ import pytest
 
 from pyorch import run as prun
 from pyorch.scene import Scene
-from pyorch.sweep import Sweep
+from pyorch.sweep import Sweep, read_results
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "slurm"
@@ -262,7 +262,7 @@ def test_sweep_on_slurm_survives_scancel_and_resumes(slurm, tmp_path):
             os.killpg(proc.pid, signal.SIGKILL)
         _cancel_ours()
     assert rc == 0, _diagnostics(spec)
-    df = pd.read_csv(spec.parent / "out" / "results.csv")
+    df = read_results(spec.parent / "out" / "results.csv")
     assert (df["status"] == "completed").all(), df.to_string()
     actions = dict(zip(df["name"], df["action"]))
     assert actions.pop(point.name) == "resumed", df.to_string()
@@ -281,7 +281,7 @@ def test_sweep_on_slurm_survives_scancel_and_resumes(slurm, tmp_path):
         assert _wait(proc, spec, "run 2 (all done)") == 0, _diagnostics(spec)
     finally:
         _cancel_ours()
-    df2 = pd.read_csv(spec.parent / "out" / "results.csv")
+    df2 = read_results(spec.parent / "out" / "results.csv")
     assert (df2["action"] == "skipped").all(), df2.to_string()
     assert mtimes == {p.name: (p / "energy.dat").stat().st_mtime_ns
                       for p in (spec.parent / "out").glob("*-*")}
@@ -316,7 +316,7 @@ def test_sweep_on_slurm_survives_scancel_and_resumes(slurm, tmp_path):
     finally:
         _cancel_ours()
     assert rc == 0, _diagnostics(spec)
-    df = pd.read_csv(spec.parent / "out" / "results.csv")
+    df = read_results(spec.parent / "out" / "results.csv")
     assert (df["status"] == "completed").all(), df.to_string()
     assert dict(zip(df["name"], df["action"]))[point.name] == "resumed", df.to_string()
     assert (point / "energy.dat").read_bytes() == _reference(spec, point, tmp_path / "ref_b")

@@ -12,6 +12,7 @@ import pytest
 
 from pyorch import SceneError
 from pyorch.cli import main
+from pyorch.sweep import read_results
 
 ROOT = Path(__file__).resolve().parents[1]
 RUNS = ROOT / "runs"
@@ -114,14 +115,34 @@ def test_sweep_seeds_set_the_kinds_seed(kind: str, tmp_path: Path) -> None:
 def test_oscillator_seeds_sweep_runs_distinct_replicates(tmp_path: Path) -> None:
     """An oscillator sweep over two seeds runs (it was refused before) and the two replicates
     differ: the seed reached the engine."""
-    import pandas as pd
-
     from pyorch.oscillator import trajectory
 
     spec = _spec(tmp_path, RUNS / "oscillator.nml",
                  'seeds = [1, 2]\n[set]\n"oscillator.n" = 4\n"oscillator.t_end" = 0.2\n')
     assert main(["sweep", str(spec), "--workers", "1", "--no-progress"]) == 0
-    res = pd.read_csv(tmp_path / "out" / "results.csv")
+    res = read_results(tmp_path / "out")
     assert list(res["status"]) == ["completed", "completed"]
     x = [trajectory(d)["x"].to_numpy() for d in res["dir"]]
     assert x[0].shape == x[1].shape and (x[0] != x[1]).any()
+
+
+# --------------------------------------------------------------------- units in results.csv
+def test_results_csv_names_its_units(tmp_path: Path) -> None:
+    """results.csv carried bare column names (F_max, T, wall_time_s): the .dat files name their
+    units, so does the sweep table now (``T[E]``), and read_results gives the bare names back
+    with the units in attrs, equal to the table the sweep returned."""
+    import numpy as np
+
+    from pyorch.sweep import Sweep
+
+    sw = Sweep(RUNS / "rods_test1_free.nml", seeds=[1, 2], out=tmp_path / "out",
+               fixed={"rods.n": 2000, "rods.t_end": 0.5, "output.histogram_every": 0})
+    df = sw.run(n_workers=1, progress=False)
+    header = (tmp_path / "out" / "results.csv").read_text().splitlines()[0].split(",")
+    assert {"name", "rods.seed", "status", "wall_time_s[s]", "T[E]", "S1[1]", "S2[1]", "g[1]",
+            "E_rel_change[1]", "dir"} <= set(header)
+    back = read_results(tmp_path / "out")
+    assert list(back.columns) == list(df.columns)
+    assert back.attrs["units"]["T"] == "E" and back.attrs["units"]["status"] == ""
+    np.testing.assert_array_equal(back["T"], df["T"])
+    assert (back["T"] > 0).all() and list(back["status"]) == ["completed"] * 2

@@ -57,9 +57,10 @@ import pandas as pd
 
 from pyorch import RunError, io
 from pyorch.bed import analysis
+from pyorch.csvunits import read_csv, write_csv
 from pyorch.bed import structure_plots as sp
 
-__all__ = ["analyze_run", "write_tables", "plot_run", "run_geometry", "max_compression_step",
+__all__ = ["analyze_run", "write_tables", "read_table", "plot_run", "run_geometry", "max_compression_step",
            "compression_rows", "magnetic_force_vectors"]
 
 Tables = dict[str, "pd.DataFrame | pd.Series"]
@@ -297,12 +298,34 @@ def analyze_run(run_dir: str | Path, *, vectors: bool = True) -> Tables:
     return tables
 
 
+#: units of the tables' columns, as in the .dat files (lengths D1, times T, forces m1*g; 1 for
+#: dimensionless numbers; counts, ids and labels have none)
+COLUMN_UNITS = {
+    "t": "T", "t_frame": "T", "t_F_max": "T", "H": "D1", "H_at_F_max": "D1", "y_P": "D1",
+    "D_hat": "D1", "delta": "D1", "x": "D1", "y": "D1", "diameter": "D1",
+    "F_piston": "m1*g", "fx": "m1*g", "fy": "m1*g", "fmag": "m1*g", "fmx": "m1*g", "fmy": "m1*g",
+    "F_mean": "m1*g", "F_std": "m1*g", "F_min": "m1*g", "F_median": "m1*g", "F_max": "m1*g",
+    "F_max_run": "m1*g",
+    **{c: "1" for c in ("phi", "phi_at_F_max", "y_P_over_y_F", "n_le4", "n5", "n6", "n7", "n_ge8",
+                        "R6_mean", "R6_std", "Psi6", "Psi6_local", "F_norm", "F_norm_species",
+                        "fluctuation", "left", "right", "center", "pdf", "pdf_share", "R", "a")},
+}
+
+
+def column_unit(name: str) -> str:
+    """Unit of a column of the bed's tables ('' for counts, ids, labels); ``delta_<species>``
+    is a length [D1]."""
+    return "D1" if name.startswith("delta_") else COLUMN_UNITS.get(name, "")
+
+
 def write_tables(run_dir: str | Path, out: str | Path | None = None,
                  tables: Tables | None = None) -> list[Path]:
-    """Write the tables of :func:`analyze_run` as CSV into ``out`` (default RUN_DIR/analysis).
+    """Write the tables of :func:`analyze_run` as CSV into ``out`` (default RUN_DIR/analysis),
+    units in the column names (``H[D1]``, :func:`column_unit`; read back with
+    :func:`read_table`).
 
     ``time_series.csv`` keeps its ``t`` index as first column; ``summary.csv`` has columns
-    ``quantity,value``. Returns the written paths.
+    ``quantity,value,unit``. Returns the written paths.
     """
     run_dir = Path(run_dir)
     out = Path(out) if out is not None else run_dir / "analysis"
@@ -312,11 +335,21 @@ def write_tables(run_dir: str | Path, out: str | Path | None = None,
     for name, table in tables.items():
         path = out / f"{name}.csv"
         if isinstance(table, pd.Series):
-            table.rename("value").rename_axis("quantity").to_csv(path, header=True)
+            long = table.rename("value").rename_axis("quantity").reset_index()
+            long["unit"] = [column_unit(str(q)) for q in long["quantity"]]
+            long.to_csv(path, index=False)
         else:
-            table.to_csv(path, index=name == "time_series")
+            write_csv(table, path, column_unit, index=name == "time_series")
         written.append(path)
     return written
+
+
+def read_table(path: str | Path) -> pd.DataFrame:
+    """A table of :func:`write_tables`: bare column names, units in ``attrs["units"]``
+    (``time_series.csv`` indexed by ``t``; ``summary.csv`` by ``quantity``)."""
+    path = Path(path)
+    index = {"time_series.csv": "t", "summary.csv": "quantity"}.get(path.name)
+    return read_csv(path, index_col=index)
 
 
 def plot_run(run_dir: str | Path, out: str | Path | None = None,

@@ -388,7 +388,8 @@ def save_order_sweep(results: pd.DataFrame, out: str | Path) -> Path:
 
 def write_tables(run_dir: str | Path, out: str | Path | None = None) -> list[Path]:
     """``analysis/steady_state.csv``: the final moments beside the exact steady state (T from
-    the initial energy and momentum), with their differences."""
+    the initial energy and momentum), with their differences (columns quantity, dsmc, exact,
+    difference, unit)."""
     run_dir = Path(run_dir)
     if not (run_dir / "history.dat").is_file():
         _say(f"{run_dir}: history.dat not written ({_OFF_KEY['history.dat']}): "
@@ -405,9 +406,14 @@ def write_tables(run_dir: str | Path, out: str | Path | None = None) -> list[Pat
     rows.append(("E_total", float(last["E_total"]), float(h["E_total"].iloc[0])))
     df = pd.DataFrame(rows, columns=["quantity", "dsmc", "exact"])
     df["difference"] = df["dsmc"] - df["exact"]
+    df["unit"] = "E"  # m L^2/t0^2 per sample, as in history.dat
     path = out / "steady_state.csv"
     df.to_csv(path, index=False)
     return [path]
+
+
+#: units of :func:`default_metrics` (as in history.dat; E = m L^2/t0^2 per sample)
+METRIC_UNITS = {"T": "E", "S1": "1", "S2": "1", "g": "1", "E_rel_change": "1"}
 
 
 #: columns of :func:`default_metrics`
