@@ -13,6 +13,9 @@ compiled engine.
 from __future__ import annotations
 
 import importlib
+import importlib.machinery
+import sys
+from pathlib import Path
 from typing import Any
 
 __version__ = "0.1.0"
@@ -34,7 +37,43 @@ class RunError(RuntimeError):
         self.code = code
 
 
+def _has_engine(folder: Path) -> bool:
+    """A compiled ``_engine`` extension lies in ``folder``."""
+    return any((folder / f"_engine{s}").is_file() for s in importlib.machinery.EXTENSION_SUFFIXES)
+
+
+def _installed_engine_dirs() -> list[str]:
+    """When this package is imported from a source tree (Python at the repository root: the
+    current directory comes first on sys.path), the ``pyorch`` folders of other sys.path
+    entries (the installed package) that hold the compiled engine; [] otherwise."""
+    here = Path(__file__).resolve().parent
+    if _has_engine(here):
+        return []
+    found = []
+    for entry in sys.path:
+        folder = Path(entry or ".").resolve() / "pyorch"
+        if folder != here and _has_engine(folder):
+            found.append(str(folder))
+    return found[:1]
+
+
+# the installed extension serves the source tree's modules (``from pyorch import _engine``)
+__path__ += _installed_engine_dirs()
+
+
 def __getattr__(name: str) -> Any:
     if name in {"scene", "run", "io", "analysis", "plots", "cli"}:
         return importlib.import_module(f"pyorch.{name}")
+    if name == "_engine":  # ``from pyorch import _engine`` asks here first (hasattr)
+        try:
+            return importlib.import_module("pyorch._engine")
+        except ModuleNotFoundError as exc:
+            if exc.name != "pyorch._engine":
+                raise
+        raise ImportError(
+            f"pyorch._engine, the compiled engine, is not built: pyorch was imported from "
+            f"{Path(__file__).resolve().parent}, which has no _engine extension, and no "
+            f"installed pyorch with one is on sys.path. Build and install it with "
+            f"'bash scripts/setup.sh' (or 'pip install .') and use that Python "
+            f"(.venv/bin/python)", name="pyorch._engine")
     raise AttributeError(name)

@@ -27,7 +27,8 @@ error; ``pyorch run`` uses it when a scene sets ``&integration
 target_rel_error``.
 
 Reproduce: ``pyorch bench trade`` (about 10 minutes on one core), outputs in
-bench/results/: trade.csv, trade_pareto.png; ``pyorch bench bias`` for the
+runs/out/bench/ (``--out DIR`` elsewhere; ``--update-shipped`` replaces the shipped tables
+in bench/results/, which ``target_rel_error`` chooses from): trade.csv, trade_pareto.png; ``pyorch bench bias`` for the
 truncation bias vs r_c (bias.csv, bias.png); ``pyorch bench seeds --seeds 64
 --workers 2`` for the seed-averaged bias of the production settings with
 standard errors and 95 % intervals (seeds.csv, seeds.png), which is what
@@ -386,26 +387,108 @@ def selection_table(trade: pd.DataFrame, seeds: pd.DataFrame | None) -> pd.DataF
     return pd.concat([t, r[[c for c in r.columns if c in t.columns]]], ignore_index=True)
 
 
-def apply_target(scene: Scene, table_path: Path | None = None,
-                 seeds_path: Path | None = None) -> tuple[Scene, str | None]:
-    """If the scene asks for target_rel_error, return it with the cheapest measured
-    setting applied and a one-line description of the choice. Settings of the
-    seed-averaged study (``pyorch bench seeds``) are judged by the 95 % bound of
-    their bias, the others by the trade study's mean error."""
+#: particles of the scene the shipped tables were measured on (runs/bench_compression.nml)
+TRADE_N = 368
+
+
+@dataclass(frozen=True)
+class TargetChoice:
+    """The setting ``target_rel_error`` chooses: its table row, the target and what the table
+    resolves (``floor``: the smallest error measured for any setting but the reference, whose
+    error is 0 by definition; ``floor_label``: that setting)."""
+
+    target: float
+    row: pd.Series
+    floor: float
+    floor_label: str
+    floor_cost: float = float("nan")  # [s per T of simulated time] of the floor_label setting
+
+    @property
+    def below_floor(self) -> bool:
+        """The target asks for less error than any setting of the table was measured with."""
+        return self.target < self.floor
+
+    def text(self) -> str:
+        """One line: the choice, its measured error and time; a second one when the target is
+        below what the table measured."""
+        r = self.row
+        line = (f"target_rel_error {self.target:g}: chose {r['label']} "
+                f"(measured error {r['err_max']:.2e}: {r['source']}; "
+                f"{r['time_per_step_s'] * 1e6:.1f} us/step on the trade scene)")
+        if self.below_floor:
+            line += (f"\nwarning: target_rel_error {self.target:g} is below every error the table "
+                     f"measured (the smallest: {self.floor:.2e}, {self.floor_label}); only the "
+                     f"reference meets it, and its error 0 is the definition of the reference, "
+                     f"not a measurement: the run is that reference, "
+                     f"{cost_per_time(r) / self.floor_cost:.3g}x the wall time per simulated T "
+                     f"of {self.floor_label}")
+        return line
+
+
+def reference_label() -> str:
+    """Label of the reference setting (errors are measured against it)."""
+    return Setting.of(**REFERENCE).label()
+
+
+def choose_target(target: float, table: pd.DataFrame) -> TargetChoice:
+    """:func:`choose` for ``target`` with what the table resolves (see TargetChoice)."""
+    row = choose(table, target)
+    t = table[table["threads"].eq(1)].dropna(subset=["err_max"])
+    measured = t[~t["label"].eq(reference_label())]
+    if measured.empty:
+        return TargetChoice(float(target), row, 0.0, "")
+    best = measured.sort_values("err_max").iloc[0]
+    return TargetChoice(float(target), row, float(best["err_max"]), str(best["label"]),
+                        cost_per_time(best))
+
+
+def cost_per_time(row: pd.Series) -> float:
+    """Wall time per unit of simulated time [s/T] of a table row: time per step / dt."""
+    return float(row["time_per_step_s"]) / float(row["dt"])
+
+
+def target_choice(scene: Scene, table_path: Path | None = None,
+                  seeds_path: Path | None = None) -> TargetChoice | None:
+    """The cheapest measured setting for the scene's ``&integration target_rel_error`` (None
+    when it is 0). Settings of the seed-averaged study (``pyorch bench seeds``) are judged by
+    the 95 % bound of their bias, the others by the trade study's mean error. SceneError
+    naming the key when no table is found or no measured setting meets the target."""
+    from pyorch import SceneError
+
     target = float(scene.get("integration", "target_rel_error", 0.0) or 0.0)
     if target <= 0:
-        return scene, None
+        return None
     table_path = Path(table_path) if table_path else default_table()
     if not table_path.is_file():
-        raise FileNotFoundError(f"target_rel_error = {target:g} needs the measured table "
-                                f"{table_path} (run: pyorch bench trade)")
+        raise SceneError(f"&integration target_rel_error = {target:g} needs the measured table "
+                         f"{table_path} (run: pyorch bench trade --update-shipped)")
     seeds_path = Path(seeds_path) if seeds_path else default_seeds_table()
     seeds = pd.read_csv(seeds_path) if seeds_path.is_file() else None
-    row = choose(selection_table(pd.read_csv(table_path), seeds), target)
-    msg = (f"target_rel_error {target:g}: chose {row['label']} "
-           f"(measured error {row['err_max']:.2e}: {row['source']}; "
-           f"{row['time_per_step_s'] * 1e6:.1f} us/step on the trade scene)")
-    return scene.with_overrides(overrides_for(row)), msg
+    try:
+        return choose_target(target, selection_table(pd.read_csv(table_path), seeds))
+    except ValueError as exc:
+        raise SceneError(f"&integration target_rel_error = {target:g}: {exc}") from None
+
+
+def apply_target(scene: Scene, table_path: Path | None = None,
+                 seeds_path: Path | None = None) -> tuple[Scene, str | None]:
+    """If the scene asks for target_rel_error, return it with the cheapest measured setting
+    applied (:func:`target_choice`) and the description of the choice
+    (:meth:`TargetChoice.text`: one line, a second one when the target is below what the
+    table measured)."""
+    choice = target_choice(scene, table_path, seeds_path)
+    if choice is None:
+        return scene, None
+    return scene.with_overrides(overrides_for(choice.row)), choice.text()
+
+
+def run_time_estimate(row: pd.Series, n_particles: int, n_steps: int) -> float:
+    """Wall time [s] of ``n_steps`` steps of ``n_particles`` at a table row's setting: its time
+    per step on the trade scene (TRADE_N particles, one core, the machine that measured the
+    table) scaled by (N/TRADE_N)^2 for all pairs and N/TRADE_N for cells and lists."""
+    ratio = n_particles / TRADE_N
+    scale = ratio**2 if row["neighbour"] == "all_pairs" else ratio
+    return float(row["time_per_step_s"]) * scale * n_steps
 
 
 def bias_study(base_path: Path, r_cuts: Sequence[float], seeds: Iterable[int], out_dir: Path,
@@ -440,8 +523,38 @@ def bias_summary_text(table: pd.DataFrame) -> str:
     return "\n".join(lines)
 
 
+#: where ``pyorch bench`` writes by default (a user's measurement; relative to the working dir)
+USER_OUT = Path("runs") / "out" / "bench"
+#: the shipped tables (``target_rel_error`` chooses from trade.csv and seeds.csv here)
+SHIPPED_OUT = Path("bench") / "results"
+
+
+def bench_out(out: Path | None, update_shipped: bool, quick: bool) -> Path:
+    """Directory of a ``pyorch bench`` study: ``out``, else USER_OUT; SHIPPED_OUT only with
+    ``update_shipped``, never for a ``quick`` smoke test (SceneError otherwise, before
+    anything is run or written)."""
+    from pyorch import SceneError
+
+    if update_shipped:
+        if out is not None:
+            raise SceneError("pyorch bench: --update-shipped writes bench/results: no --out")
+        if quick:
+            raise SceneError("pyorch bench: --quick measures 4 settings only, a smoke test: "
+                             "its table cannot replace the shipped one (no --update-shipped)")
+        return SHIPPED_OUT
+    if out is None:
+        return USER_OUT
+    shipped = {SHIPPED_OUT.resolve(), PACKAGED_TABLE.parent.resolve()}
+    if out.resolve() in shipped:
+        raise SceneError(f"pyorch bench: --out {out} holds the shipped tables that "
+                         f"target_rel_error chooses from: write them with --update-shipped "
+                         f"(a full study), or choose another directory")
+    return out
+
+
 def main_bench(args: Any) -> int:
-    out = Path(args.out)
+    out = bench_out(getattr(args, "out", None), getattr(args, "update_shipped", False),
+                    getattr(args, "quick", False))
     out.mkdir(parents=True, exist_ok=True)
     seeds = list(range(1, args.seeds + 1))
     if args.what == "trade":

@@ -6,7 +6,8 @@
     pyorch check SCENE.nml [--set ...]
     pyorch plot RUN_DIR [--out DIR] [--no-structure]
     pyorch analyze RUN_DIR [--out DIR]
-    pyorch bench trade|bias|seeds [--scene S] [--seeds N] [--quick] [--workers W] [--out DIR]
+    pyorch bench trade|bias|seeds [--scene S] [--seeds N] [--quick] [--workers W]
+                 [--out DIR | --update-shipped]
     pyorch sweep SWEEP.toml [--workers N] [--scheduler ADDR] [--cluster local|slurm]
     pyorch dataset gns SPEC.toml [--workers N] [--scheduler ADDR] [--dry-run]
     pyorch dataset check DATASET_DIR
@@ -90,7 +91,11 @@ def _parser() -> argparse.ArgumentParser:
                    help="engine processes at once (errors only: times are then contended)")
     b.add_argument("--reuse", type=Path, default=None,
                    help="rows CSV of an earlier study of the scene: completed runs are kept")
-    b.add_argument("--out", type=Path, default=Path("bench/results"))
+    b.add_argument("--out", type=Path, default=None,
+                   help="where the tables, figures and runs go (default runs/out/bench)")
+    b.add_argument("--update-shipped", action="store_true",
+                   help="write the shipped tables in bench/results (target_rel_error chooses "
+                        "from them; not with --quick)")
     return p
 
 
@@ -111,12 +116,7 @@ def _main(args: argparse.Namespace) -> int:
         if args.cmd == "run":
             return _cmd_run(args)
         if args.cmd == "check":
-            from pyorch.scene import Scene, validate
-
-            info = validate(Scene.read(args.scene).with_overrides(args.overrides))
-            extra = f"{info['n_particles']} particles, " if "n_particles" in info else ""
-            print(f"ok: {info['kind']}, {extra}{info['n_steps']} steps")
-            return 0
+            return _cmd_check(args)
         if args.cmd == "scene":
             import json
 
@@ -168,6 +168,40 @@ def _main(args: argparse.Namespace) -> int:
         print(f"pyorch: error: {exc}", file=sys.stderr)
         return exc.code
     return 1
+
+
+def _cmd_check(args: argparse.Namespace) -> int:
+    """Validate through the engine; with ``target_rel_error`` also the setting it would
+    choose (as ``pyorch run`` does) and the run-time estimate of the scene at that setting."""
+    from pyorch.bench import overrides_for, run_time_estimate, target_choice
+    from pyorch.scene import Scene, validate
+
+    scene = Scene.read(args.scene)  # the engine's reading: SceneError if refused
+    if args.overrides:
+        scene = scene.with_overrides(args.overrides)
+    choice = target_choice(scene)
+    if choice is not None:
+        scene = scene.with_overrides(overrides_for(choice.row))
+    # the user's file as it is unless pyorch changes it (then pyorch writes it again)
+    info = validate(scene if args.overrides or choice else args.scene)
+    extra = f"{info['n_particles']} particles, " if "n_particles" in info else ""
+    print(f"ok: {info['kind']}, {extra}{info['n_steps']} steps")
+    if choice is not None:
+        print(choice.text())
+        est = run_time_estimate(choice.row, int(info.get("n_particles", 0)), int(info["n_steps"]))
+        print(f"estimated run time: {_duration(est)} at {choice.row['label']} (its time per step on "
+              f"the trade scene, scaled to {info.get('n_particles')} particles: one core of the "
+              f"machine that measured the table)")
+    return 0
+
+
+def _duration(seconds: float) -> str:
+    """A wall time for people: 42 s, 3.5 min, 2.1 h."""
+    if seconds < 120:
+        return f"{seconds:.3g} s"
+    if seconds < 7200:
+        return f"{seconds / 60:.3g} min"
+    return f"{seconds / 3600:.3g} h"
 
 
 def _cmd_run(args: argparse.Namespace) -> int:

@@ -20,7 +20,8 @@ from pyorch import RunError, SceneError
 
 @dataclass(frozen=True)
 class Kind:
-    """One scene kind: its name, engine method (Fortran folder), groups, units, subpackage."""
+    """One scene kind: its name, engine method (Fortran folder), groups, units, subpackage,
+    and ``seed_key``, the ``group.key`` of its random seed (what a sweep's ``seeds`` set)."""
 
     name: str
     method: str
@@ -28,6 +29,7 @@ class Kind:
     units: str
     package: str
     summary: str
+    seed_key: str
 
 
 KINDS: dict[str, Kind] = {
@@ -36,26 +38,31 @@ KINDS: dict[str, Kind] = {
         ("scene", "material", "cell", "particles", "physics", "integration", "protocol", "output"),
         "length D1 (big-particle diameter), time T = sqrt(D1/g), mass m1, force m1 g; "
         "&material in SI",
-        "pyorch.bed", "magnetic granular bed compressed by a piston (thesis 003)"),
+        "pyorch.bed", "magnetic granular bed compressed by a piston (thesis 003)",
+        seed_key="particles.seed"),
     "oscillator": Kind(
         "oscillator", "oscillator", ("scene", "oscillator", "output"),
         "length L and time tau of the user's choice (omega in rad/tau), unit mass",
-        "pyorch.oscillator", "independent damped harmonic oscillators (validation kind)"),
+        "pyorch.oscillator", "independent damped harmonic oscillators (validation kind)",
+        seed_key="oscillator.seed"),
     "dla": Kind(
         "dla", "edmd", ("scene", "box", "disks", "aggregate", "run", "output"),
         "length L (box unit), mass M, energy E (kT), time tau = L sqrt(M/E)",
-        "pyorch.dla", "event-driven hard disks aggregating on a seed (seed 004)"),
+        "pyorch.dla", "event-driven hard disks aggregating on a seed (seed 004)",
+        seed_key="disks.seed"),
     "rods": Kind(
         "rods", "dsmc", ("scene", "rods", "collisions", "mean_field", "output"),
         "mass m (a sample's), length L (a rod's), time t0 of the scene; energies m L^2/t0^2",
-        "pyorch.rods", "space-homogeneous DSMC of rods of vanishing girth (seed 001)"),
+        "pyorch.rods", "space-homogeneous DSMC of rods of vanishing girth (seed 001)",
+        seed_key="rods.seed"),
     "lj_box": Kind(
         "lj_box", "md",
         ("scene", "box", "particles", "steric", "physics", "field", "walls", "integration",
          "output"),
         "length a (particle radius), time T = sqrt(a/g), mass m (all 1), force m g, "
         "energy m g a",
-        "pyorch.lj", "Lennard-Jones particles in a 2D box, trajectories for GNS (seed 000)"),
+        "pyorch.lj", "Lennard-Jones particles in a 2D box, trajectories for GNS (seed 000)",
+        seed_key="particles.seed"),
 }
 
 _KIND_RE = re.compile(r"""^\s*kind\s*=\s*['"]([^'"]*)['"]""", re.I | re.M)

@@ -31,6 +31,7 @@ import f90nml
 from pyorch import SceneError
 
 from pyorch.kinds import KINDS
+from pyorch.values import bare_string
 
 #: every namelist group of every kind, in the order they are written
 GROUPS = tuple(dict.fromkeys(g for k in KINDS.values() for g in k.groups))
@@ -60,7 +61,10 @@ def resolve_file(path: str | Path) -> f90nml.Namelist:
         code, msg = _engine.api.resolve_scene(str(path), str(out))
         if code != 0:
             raise SceneError(_engine_message(msg))
-        return f90nml.read(str(out))
+        # the engine passes a string's bytes on as they are (a latin-1 title, say): keep
+        # them, whatever the locale (Scene.write refuses to write them back as escapes)
+        with open(out, encoding="utf-8", errors="surrogateescape") as fh:
+            return f90nml.read(fh)
 
 
 @functools.lru_cache(maxsize=8)
@@ -189,8 +193,8 @@ def parse_override(text: str, kind: str = "magnet_bed") -> tuple[str, str, Any]:
     name, idx = _split_key(group, key, where, kind)
     spec = key_specs(kind)[group][name]
     raw = value.strip()
-    if spec["type"] == "string" and raw and raw[0] not in "'\"":
-        parsed: Any = raw                      # a bare string: the text as typed
+    if spec["type"] == "string" and (bare := bare_string(value)) is not None:
+        parsed: Any = bare                     # a string-typed key takes the value as typed
     else:
         if raw.startswith("[") and raw.endswith("]"):
             raw = raw[1:-1]
@@ -300,6 +304,9 @@ class Scene:
 
     def write(self, path: str | Path) -> Path:
         """Write the namelist (overwrites)."""
+        from pyorch.values import check_writable
+
+        check_writable(self.groups, self.label())
         path = Path(path)
         self.namelist().write(str(path), force=True)
         return path

@@ -5,13 +5,14 @@ directory with a stable name made of its varying parameters and a short hash of
 the base scene and of all its overrides, e.g.
 ``piston_speed=0.5_seed=3-1a2b3c4d``. The points are written to
 ``manifest.json`` before anything runs; the results (one row per point) to
-``results.csv`` (and ``results.parquet`` when pyarrow is importable).
+``results.csv``, units in the column names, ``F_max[m1*g]`` (:func:`read_results` reads it
+back), and ``results.parquet`` when pyarrow is importable.
 
 Spec file (TOML; relative paths are relative to the TOML file)::
 
     base = "../standard.nml"          # base scene (namelist)
     out = "../out/sweeps/speeds"      # sweep directory (default <base dir>/out/sweeps/<toml stem>)
-    seeds = [1, 2, 3]                 # replicates -> particles.seed
+    seeds = [1, 2, 3]                 # replicates -> the kind's seed key (bed: particles.seed)
     [grid]                            # cartesian product of these values
     "protocol.piston_speed" = [0.02321773, 0.03435234, 0.1]
     [set]                             # fixed overrides for every point
@@ -99,7 +100,7 @@ else:  # pragma: no cover - Python 3.10
 MetricFn = Callable[[Any], Mapping[str, Any]]
 TaskFn = Callable[..., dict]
 
-SEED_KEY = "particles.seed"
+SEED_KEY = "particles.seed"  # the bed's; every kind declares its own (pyorch.kinds.Kind.seed_key)
 MANIFEST = "manifest.json"
 RESULTS = "results"
 STALE_GRACE_S = 30.0  # s: a 'running' run.json younger than this may belong to a dying engine
@@ -388,8 +389,10 @@ class Sweep:
     """A base scene, a grid and/or list of override points, replicate seeds, fixed overrides.
 
     Points are the product (points x grid x seeds); every point gets the fixed
-    overrides, then its own values, then ``particles.seed``. ``out`` is the
-    sweep directory (default ``<base dir>/out/sweeps/<base stem>``).
+    overrides, then its own values, then its seed as the kind's seed key (``seed_key``:
+    magnet_bed and lj_box ``particles.seed``, dla ``disks.seed``, rods ``rods.seed``,
+    oscillator ``oscillator.seed``). ``out`` is the sweep directory (default
+    ``<base dir>/out/sweeps/<base stem>``).
     """
 
     def __init__(self, base: str | Path, grid: Mapping[str, Sequence[Any]] | None = None,
@@ -398,8 +401,12 @@ class Sweep:
                  out: str | Path | None = None) -> None:
         from pyorch.scene import Scene
 
+        from pyorch import kinds
+
         self.base = Path(os.path.abspath(base))
         self.scene = Scene.read(self.base)
+        #: the override key that ``seeds`` set: the base scene's kind declares it
+        self.seed_key = kinds.get(str(self.scene.get("scene", "kind", "magnet_bed"))).seed_key
         self.grid = _check_keys(grid or {}, "grid")
         for key, values in self.grid.items():
             if isinstance(values, (str, bytes)) or not isinstance(values, Sequence) or not values:
@@ -407,8 +414,9 @@ class Sweep:
         self.point_specs = [_check_keys(p, f"points[{i}]") for i, p in enumerate(points or [])]
         self.seeds = [int(s) for s in seeds] if seeds is not None else None
         self.fixed = _check_keys(fixed or {}, "set")
-        if self.seeds is not None and (SEED_KEY in self.grid or any(SEED_KEY in p for p in self.point_specs)):
-            raise SceneError(f"{SEED_KEY} is given both in seeds and in grid/points")
+        key = self.seed_key
+        if self.seeds is not None and (key in self.grid or any(key in p for p in self.point_specs)):
+            raise SceneError(f"{key} is given both in seeds and in grid/points")
         self.out = Path(os.path.abspath(out)) if out else self.base.parent / "out" / "sweeps" / self.base.stem
         self.metrics: MetricFn | None = None   # default: the kind's default_metrics; TOML key 'metrics'
 
@@ -435,7 +443,7 @@ class Sweep:
             if k not in keys:
                 keys.append(k)
         if self.seeds is not None:
-            keys.append(SEED_KEY)
+            keys.append(self.seed_key)
         return keys
 
     def _overrides(self) -> list[dict[str, Any]]:
@@ -447,7 +455,7 @@ class Sweep:
         for spec, combo, seed in itertools.product(specs, combos, seeds):
             ov = {**self.fixed, **spec, **dict(zip(self.grid, combo))}
             if seed is not None:
-                ov[SEED_KEY] = seed
+                ov[self.seed_key] = seed
             result.append(ov)
         return result
 
@@ -493,6 +501,8 @@ class Sweep:
         function (default :func:`run_point`, same signature, must not raise).
         Writes manifest.json first and results.csv (+ .parquet) at the end.
         """
+        if client is None and not scheduler_address and cluster == "slurm":
+            check_slurm_config(cluster_kwargs)  # before anything is written
         self.write_manifest()
         pts = self.points()
         metrics = metrics or self.metrics
@@ -510,14 +520,44 @@ class Sweep:
             extra = {k: v for k, v in row.items() if k not in ("name", "dir")}
             table.append({"name": p["name"], **{k: p[k] for k in keys}, **extra, "dir": p["dir"]})
         df = pd.DataFrame(table)
-        write_results(df, self.out)
+        write_results(df, self.out, self.result_units())
         return df
 
+    def result_units(self) -> dict[str, str]:
+        """Units of the results' columns: wall_time_s [s] and, with the kind's default metrics,
+        the kind's ``METRIC_UNITS`` (as in its .dat files). The parameters' units are the
+        scene's (scene.nml of each point)."""
+        units = dict(TASK_UNITS)
+        if self.metrics is None:
+            from pyorch import kinds
 
-def write_results(df: pd.DataFrame, out: Path) -> list[Path]:
-    """results.csv (always) and results.parquet (if pyarrow is importable) in ``out``."""
+            kind = str(self.scene.get("scene", "kind", "magnet_bed"))
+            units.update(getattr(kinds.plugin(kind), "METRIC_UNITS", {}))
+        return units
+
+
+#: units of the columns every task row has (see :func:`run_point`)
+TASK_UNITS = {"wall_time_s": "s"}
+
+
+def read_results(path: str | Path) -> pd.DataFrame:
+    """A sweep's results.csv (or its directory): bare column names, the units of the columns
+    that have one in ``df.attrs["units"]`` (the file's header reads ``F_max[m1*g]``)."""
+    from pyorch.csvunits import read_csv
+
+    path = Path(path)
+    return read_csv(path / f"{RESULTS}.csv" if path.is_dir() else path)
+
+
+def write_results(df: pd.DataFrame, out: Path,
+                  units: Mapping[str, str] | None = None) -> list[Path]:
+    """results.csv (always; ``units`` in the column names, ``F_max[m1*g]``, read back with
+    :func:`read_results`) and results.parquet (if pyarrow is importable, bare names) in
+    ``out``."""
+    from pyorch.csvunits import write_csv
+
     paths = [out / f"{RESULTS}.csv"]
-    df.to_csv(paths[0], index=False)
+    write_csv(df, paths[0], units or TASK_UNITS)
     if importlib.util.find_spec("pyarrow") is not None:
         try:
             flat = df.map(lambda v: _canonical(v) if isinstance(v, (list, dict)) else v)
@@ -559,10 +599,47 @@ def _make_cluster(kind: str, n_workers: int | None, kwargs: Mapping[str, Any], n
     if kind == "slurm":
         from dask_jobqueue import SLURMCluster
 
-        slurm = SLURMCluster(**kwargs)
+        check_slurm_config(kwargs)
+        try:
+            slurm = SLURMCluster(**kwargs)
+        except ValueError as exc:  # dask-jobqueue's word on a setting it cannot use
+            raise SceneError(f"--cluster slurm: dask-jobqueue refused the Slurm settings: "
+                             f"{' '.join(str(exc).split())} ({_slurm_config_hint()})") from None
         slurm.scale(_slurm_workers(n_workers, n_points))
         return slurm
     raise ValueError(f"cluster must be 'local' or 'slurm', got {kind!r}")
+
+
+#: the jobqueue.slurm settings a SLURMCluster cannot do without
+SLURM_REQUIRED = ("cores", "memory")
+
+
+def _slurm_config_hint() -> str:
+    """Where the dask config of ``--cluster slurm`` comes from and how to give it."""
+    import dask.config
+
+    where = ", ".join(dask.config.paths)
+    return (f"dask reads its config from the YAML files in {where}; copy "
+            f"runs/sweeps/slurm_example.yaml to ~/.config/dask/jobqueue.yaml and set "
+            f"queue/account/walltime there, or point the environment variable DASK_CONFIG at a "
+            f"folder holding such a file (examples/slurm for scripts/slurm_local.sh)")
+
+
+def check_slurm_config(kwargs: Mapping[str, Any] | None = None) -> None:
+    """SceneError naming the missing ``jobqueue.slurm`` keys, the config files and the
+    environment variable when the dask config (or ``kwargs``, SLURMCluster's own
+    arguments) does not say how large a job is."""
+    import dask.config
+    import dask_jobqueue  # noqa: F401 - loads its defaults into the dask config
+
+    kwargs = kwargs or {}
+    missing = [k for k in SLURM_REQUIRED
+               if kwargs.get(k) is None and dask.config.get(f"jobqueue.slurm.{k}", None) is None]
+    if missing:
+        keys = " and ".join(f"jobqueue.slurm.{k}" for k in missing)
+        raise SceneError(f"--cluster slurm: the dask config does not give {keys} (a job's "
+                         f"cores and memory, e.g. cores: 1, memory: \"2GiB\"): "
+                         f"{_slurm_config_hint()}")
 
 
 class _JobKeeper:

@@ -40,7 +40,7 @@ import pytest
 
 from pyorch import run as prun
 from pyorch.scene import Scene
-from pyorch.sweep import Sweep
+from pyorch.sweep import Sweep, read_results
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "slurm"
@@ -51,6 +51,27 @@ JOB_NAME = f"pyorch-sweep-test{os.getpid()}"
 BLOCKER = f"{JOB_NAME}-blocker"
 PYORCH = Path(sys.executable).parent / "pyorch"
 SWEEP_TIMEOUT_S = 120.0            # one sweep of 4 points on 2 one-core jobs takes ~15 s
+
+
+SLURM_CONF = Path("/etc/slurm/slurm.conf")
+CONF_MARK = "# written by pyorch scripts/slurm_local.sh"  # its first line (scripts/slurm_local.sh)
+
+
+def foreign_slurm_conf(conf: Path = SLURM_CONF) -> str | None:
+    """Why this test cannot run when ``conf`` belongs to another Slurm (it exists and was not
+    written by scripts/slurm_local.sh, which refuses to replace it); None otherwise."""
+    try:
+        with open(conf, encoding="utf-8", errors="replace") as fh:
+            first = fh.readline()
+    except FileNotFoundError:
+        return None
+    except OSError as exc:
+        return f"{conf} cannot be read ({exc.strerror}): not the configuration of scripts/slurm_local.sh"
+    if first.startswith(CONF_MARK):
+        return None
+    return (f"{conf} belongs to another Slurm (not written by scripts/slurm_local.sh, which "
+            f"refuses to replace a real cluster's configuration): this test runs only on the "
+            f"single-node Slurm of that script")
 
 
 def _have_slurm() -> bool:
@@ -104,6 +125,9 @@ def _cancel_pending_job(spec: Path) -> None:
 def slurm():
     """A running single-node Slurm (started by scripts/slurm_local.sh, stopped again if it
     was not running before); the sweep's jobs are cancelled at the end."""
+    foreign = foreign_slurm_conf()
+    if foreign:
+        pytest.skip(foreign)
     was_up = _have_slurm() and subprocess.run(["bash", str(SCRIPT), "status"],
                                               capture_output=True, timeout=30).returncode == 0
     if not was_up and not _can_install():
@@ -238,7 +262,7 @@ def test_sweep_on_slurm_survives_scancel_and_resumes(slurm, tmp_path):
             os.killpg(proc.pid, signal.SIGKILL)
         _cancel_ours()
     assert rc == 0, _diagnostics(spec)
-    df = pd.read_csv(spec.parent / "out" / "results.csv")
+    df = read_results(spec.parent / "out" / "results.csv")
     assert (df["status"] == "completed").all(), df.to_string()
     actions = dict(zip(df["name"], df["action"]))
     assert actions.pop(point.name) == "resumed", df.to_string()
@@ -257,7 +281,7 @@ def test_sweep_on_slurm_survives_scancel_and_resumes(slurm, tmp_path):
         assert _wait(proc, spec, "run 2 (all done)") == 0, _diagnostics(spec)
     finally:
         _cancel_ours()
-    df2 = pd.read_csv(spec.parent / "out" / "results.csv")
+    df2 = read_results(spec.parent / "out" / "results.csv")
     assert (df2["action"] == "skipped").all(), df2.to_string()
     assert mtimes == {p.name: (p / "energy.dat").stat().st_mtime_ns
                       for p in (spec.parent / "out").glob("*-*")}
@@ -292,10 +316,25 @@ def test_sweep_on_slurm_survives_scancel_and_resumes(slurm, tmp_path):
     finally:
         _cancel_ours()
     assert rc == 0, _diagnostics(spec)
-    df = pd.read_csv(spec.parent / "out" / "results.csv")
+    df = read_results(spec.parent / "out" / "results.csv")
     assert (df["status"] == "completed").all(), df.to_string()
     assert dict(zip(df["name"], df["action"]))[point.name] == "resumed", df.to_string()
     assert (point / "energy.dat").read_bytes() == _reference(spec, point, tmp_path / "ref_b")
     _check_physics(df)
     print(f"\nslurm sweep: run 1 (scancel, re-submit, resume) {t_run1:.1f} s, "
           f"all {time.monotonic() - t_start:.1f} s")
+
+
+def test_foreign_slurm_conf_is_a_reason_to_skip(tmp_path: Path) -> None:
+    """A /etc/slurm/slurm.conf of another Slurm made the module fixture error (the script
+    refuses to replace it): it is now a skip with that reason; the script's own, or none, is
+    no reason."""
+    conf = tmp_path / "slurm.conf"
+    assert foreign_slurm_conf(conf) is None
+    conf.write_text(f"{CONF_MARK} (single node; 2026-01-01T00:00:00Z)\nClusterName=pyorch-local\n")
+    assert foreign_slurm_conf(conf) is None
+    conf.write_text("ClusterName=hpc\nSlurmctldHost=head01\n")
+    reason = foreign_slurm_conf(conf)
+    assert reason is not None and reason.startswith(f"{conf} belongs to another Slurm")
+    script_mark = next(line for line in SCRIPT.read_text().splitlines() if line.startswith("MARK="))
+    assert script_mark == f'MARK="{CONF_MARK}"'  # the same mark as the script's

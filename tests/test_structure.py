@@ -222,12 +222,20 @@ def test_run_without_particles_gives_piston_summary_and_skips_plots(run_dir, tmp
 def test_write_tables_round_trips(run_dir, tmp_path, tables):
     paths = az.write_tables(run_dir, tmp_path / "a", tables=tables)
     assert sorted(p.name for p in paths) == sorted(f"{k}.csv" for k in TABLES)
-    ts = pd.read_csv(tmp_path / "a" / "time_series.csv", index_col="t")
+    ts = az.read_table(tmp_path / "a" / "time_series.csv")
     np.testing.assert_allclose(ts["n6"], tables["time_series"]["n6"])
-    summ = pd.read_csv(tmp_path / "a" / "summary.csv", index_col="quantity")["value"]
-    assert summ["F_max"] == pytest.approx(tables["summary"]["F_max"], rel=1e-12)
-    hist = pd.read_csv(tmp_path / "a" / "force_histogram.csv")
+    np.testing.assert_allclose(ts.index, tables["time_series"].index)
+    summ = az.read_table(tmp_path / "a" / "summary.csv")
+    assert summ.loc["F_max", "value"] == pytest.approx(tables["summary"]["F_max"], rel=1e-12)
+    assert summ.loc["F_max", "unit"] == "m1*g" and summ.loc["H_at_F_max", "unit"] == "D1"
+    hist = az.read_table(tmp_path / "a" / "force_histogram.csv")
     assert hist["count"].sum() == N
+    # units in the column names, as in the .dat files
+    header = (tmp_path / "a" / "time_series.csv").read_text().splitlines()[0].split(",")
+    assert header[:4] == ["t[T]", "step", "H[D1]", "F_piston[m1*g]"] and "n6[1]" in header
+    assert ts.attrs["units"]["H"] == "D1" and ts.attrs["units"]["step"] == ""
+    forces = (tmp_path / "a" / "forces.csv").read_text().splitlines()[0].split(",")
+    assert {"x[D1]", "fmag[m1*g]", "F_norm[1]", "id"} <= set(forces)
 
 
 def test_plot_run_writes_structure_figures(bi_dir, tmp_path):

@@ -173,7 +173,7 @@ def test_local_cluster_matches_serial(client, tmp_path):
         assert not math.isnan(row["F_max"]) and not math.isnan(row["Psi6"])
     pistons = {(Path(d) / "piston.dat").read_bytes() for d in df["dir"]}
     assert len(pistons) == 6  # seeds and speeds really differ
-    on_disk = pd.read_csv(sweep.out / "results.csv")
+    on_disk = sw.read_results(sweep.out)
     assert list(on_disk["name"]) == list(df["name"])
 
 
@@ -270,7 +270,7 @@ def test_cli_hook_with_list_values(tmp_path, capsys):
     assert args.func is sw.cmd_sweep
     assert sw.cmd_sweep(args) == 0
     assert "4/4 points completed" in capsys.readouterr().out
-    df = pd.read_csv(tmp_path / "out" / "results.csv")
+    df = sw.read_results(tmp_path / "out" / "results.csv")
     assert (df["status"] == "completed").all() and len(df) == 4
     for row in df.to_dict("records"):  # the list value reached the engine
         used = Scene.read(Path(row["dir"]) / "scene.nml").get("particles", "species_diameter")

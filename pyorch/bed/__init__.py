@@ -37,6 +37,9 @@ def write_tables(run_dir: str | Path, out: str | Path | None = None) -> list[Pat
 
 #: columns of :func:`default_metrics` (NaN for a point that did not complete)
 METRIC_KEYS = ("F_max", "H_at_F_max", "D_hat", "n5", "n6", "n7", "Psi6")
+#: their units (as in the .dat files), written into the sweep's results.csv column names
+METRIC_UNITS = {"F_max": "m1*g", "H_at_F_max": "D1", "D_hat": "D1", "n5": "1", "n6": "1",
+                "n7": "1", "Psi6": "1"}
 
 
 def default_metrics(run: Any) -> dict[str, Any]:

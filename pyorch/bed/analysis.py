@@ -91,13 +91,18 @@ _REL_TOL = 1e-6  # default merge tolerance relative to the mean inter-particle s
 # --------------------------------------------------------------------------------------------------
 # small helpers
 # --------------------------------------------------------------------------------------------------
+#: fewest particles a Voronoi tessellation (and every structure measure built on it) takes
+MIN_VORONOI_POINTS = 3
+
+
 def _as_points(points: ArrayLike) -> NDArray[np.float64]:
     """Return ``points`` as a float array of shape (N, 2), N >= 3, all finite."""
     p = np.asarray(points, dtype=float)
     if p.ndim != 2 or p.shape[1] != 2:
         raise ValueError(f"points must have shape (N, 2), got {p.shape}")
-    if p.shape[0] < 3:
-        raise ValueError(f"need at least 3 points for a Voronoi tessellation, got {p.shape[0]}")
+    if p.shape[0] < MIN_VORONOI_POINTS:
+        raise ValueError(f"need at least {MIN_VORONOI_POINTS} points for a Voronoi tessellation, "
+                         f"got {p.shape[0]}")
     if not np.all(np.isfinite(p)):
         raise ValueError("points contain NaN or inf")
     return p

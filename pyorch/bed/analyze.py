@@ -40,8 +40,9 @@ Tables of :func:`analyze_run` (lengths D1, times T, forces m1 g):
     compression"), and at that frame ``n_interior``, ``n_le4``, ``n5``, ``n6``, ``n7``, ``n_ge8``,
     ``Psi6``, ``Psi6_local``, ``R6_mean``, ``R6_std``, ``delta``.
 
-Without particles.dat only the summary is produced, from piston.dat and mean_distance.dat (a message
-on stderr says so). The across-run table of :mod:`pyorch.bed.structure_plots` (one row per run, columns
+Without particles.dat, or with fewer than 3 particles (no Voronoi tessellation: the single-particle
+scene), only the summary is produced, from piston.dat and mean_distance.dat (a message on stderr
+says so). The across-run table of :mod:`pyorch.bed.structure_plots` (one row per run, columns
 ``R``, ``a``, ``n5``, ``n6``, ``n7``, ``Psi6``, ``F_max``, ...) is
 ``pd.DataFrame([analyze_run(d)["summary"] for d in run_dirs])``.
 """
@@ -56,9 +57,10 @@ import pandas as pd
 
 from pyorch import RunError, io
 from pyorch.bed import analysis
+from pyorch.csvunits import read_csv, write_csv
 from pyorch.bed import structure_plots as sp
 
-__all__ = ["analyze_run", "write_tables", "plot_run", "run_geometry", "max_compression_step",
+__all__ = ["analyze_run", "write_tables", "read_table", "plot_run", "run_geometry", "max_compression_step",
            "compression_rows", "magnetic_force_vectors"]
 
 Tables = dict[str, "pd.DataFrame | pd.Series"]
@@ -66,6 +68,19 @@ Tables = dict[str, "pd.DataFrame | pd.Series"]
 
 def _say(msg: str) -> None:
     print(f"pyorch analyze: {msg}", file=sys.stderr)
+
+
+STRUCTURE_SKIPPED = (f"no Voronoi, Psi6 or force structure (they need at least "
+                     f"{analysis.MIN_VORONOI_POINTS} particles): skipped")
+
+
+def n_particles(frames: pd.DataFrame) -> int:
+    """The most particles in any frame of a long frames table (0 when empty)."""
+    return int(frames.groupby("step").size().max()) if not frames.empty else 0
+
+
+def _few(n: int) -> str:
+    return f"{n} particle" + ("" if n == 1 else "s")
 
 
 def run_geometry(run_dir: str | Path) -> dict[str, Any]:
@@ -236,6 +251,12 @@ def analyze_run(run_dir: str | Path, *, vectors: bool = True) -> Tables:
         _say(f"{run_dir}: no particle frames (particles.dat): structure analysis skipped")
         tables["summary"] = pd.Series(summary, dtype=float, name=run_dir.name)
         return tables
+    n_max = n_particles(fr)
+    if n_max < analysis.MIN_VORONOI_POINTS:
+        _say(f"{run_dir}: {_few(n_max)}: {STRUCTURE_SKIPPED}")
+        summary["N"] = float(n_max)
+        tables["summary"] = pd.Series(summary, dtype=float, name=run_dir.name)
+        return tables
     steps = np.sort(fr["step"].unique())
     head = fr.groupby("step", sort=True)["t"].first().rename("t_frame").reset_index()
     if pis is not None:
@@ -277,12 +298,34 @@ def analyze_run(run_dir: str | Path, *, vectors: bool = True) -> Tables:
     return tables
 
 
+#: units of the tables' columns, as in the .dat files (lengths D1, times T, forces m1*g; 1 for
+#: dimensionless numbers; counts, ids and labels have none)
+COLUMN_UNITS = {
+    "t": "T", "t_frame": "T", "t_F_max": "T", "H": "D1", "H_at_F_max": "D1", "y_P": "D1",
+    "D_hat": "D1", "delta": "D1", "x": "D1", "y": "D1", "diameter": "D1",
+    "F_piston": "m1*g", "fx": "m1*g", "fy": "m1*g", "fmag": "m1*g", "fmx": "m1*g", "fmy": "m1*g",
+    "F_mean": "m1*g", "F_std": "m1*g", "F_min": "m1*g", "F_median": "m1*g", "F_max": "m1*g",
+    "F_max_run": "m1*g",
+    **{c: "1" for c in ("phi", "phi_at_F_max", "y_P_over_y_F", "n_le4", "n5", "n6", "n7", "n_ge8",
+                        "R6_mean", "R6_std", "Psi6", "Psi6_local", "F_norm", "F_norm_species",
+                        "fluctuation", "left", "right", "center", "pdf", "pdf_share", "R", "a")},
+}
+
+
+def column_unit(name: str) -> str:
+    """Unit of a column of the bed's tables ('' for counts, ids, labels); ``delta_<species>``
+    is a length [D1]."""
+    return "D1" if name.startswith("delta_") else COLUMN_UNITS.get(name, "")
+
+
 def write_tables(run_dir: str | Path, out: str | Path | None = None,
                  tables: Tables | None = None) -> list[Path]:
-    """Write the tables of :func:`analyze_run` as CSV into ``out`` (default RUN_DIR/analysis).
+    """Write the tables of :func:`analyze_run` as CSV into ``out`` (default RUN_DIR/analysis),
+    units in the column names (``H[D1]``, :func:`column_unit`; read back with
+    :func:`read_table`).
 
     ``time_series.csv`` keeps its ``t`` index as first column; ``summary.csv`` has columns
-    ``quantity,value``. Returns the written paths.
+    ``quantity,value,unit``. Returns the written paths.
     """
     run_dir = Path(run_dir)
     out = Path(out) if out is not None else run_dir / "analysis"
@@ -292,11 +335,21 @@ def write_tables(run_dir: str | Path, out: str | Path | None = None,
     for name, table in tables.items():
         path = out / f"{name}.csv"
         if isinstance(table, pd.Series):
-            table.rename("value").rename_axis("quantity").to_csv(path, header=True)
+            long = table.rename("value").rename_axis("quantity").reset_index()
+            long["unit"] = [column_unit(str(q)) for q in long["quantity"]]
+            long.to_csv(path, index=False)
         else:
-            table.to_csv(path, index=name == "time_series")
+            write_csv(table, path, column_unit, index=name == "time_series")
         written.append(path)
     return written
+
+
+def read_table(path: str | Path) -> pd.DataFrame:
+    """A table of :func:`write_tables`: bare column names, units in ``attrs["units"]``
+    (``time_series.csv`` indexed by ``t``; ``summary.csv`` by ``quantity``)."""
+    path = Path(path)
+    index = {"time_series.csv": "t", "summary.csv": "quantity"}.get(path.name)
+    return read_csv(path, index_col=index)
 
 
 def plot_run(run_dir: str | Path, out: str | Path | None = None,
@@ -314,6 +367,11 @@ def plot_run(run_dir: str | Path, out: str | Path | None = None,
     if not io.has_frames(run_dir):
         _say(f"{run_dir}: no particles.dat: structure figures skipped")
         return []
+    if tables is None:
+        n_max = n_particles(io.frames(run_dir))
+        if n_max < analysis.MIN_VORONOI_POINTS:
+            _say(f"{run_dir}: {_few(n_max)}: {STRUCTURE_SKIPPED.replace('structure', 'structure figures')}")
+            return []
     tables = analyze_run(run_dir) if tables is None else tables
     if "time_series" not in tables:
         _say(f"{run_dir}: no particle frames: structure figures skipped")

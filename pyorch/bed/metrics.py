@@ -21,7 +21,7 @@ def _nearest_row(df: pd.DataFrame, step: int) -> pd.Series:
 
 def _frame_metrics_near(run: Any, step: int) -> dict[str, float]:
     """n5, n6, n7, Psi6 of the particle frame nearest to ``step`` (NaN without frames)."""
-    from pyorch.bed.analysis import frame_metrics
+    from pyorch.bed.analysis import MIN_VORONOI_POINTS, frame_metrics
     from pyorch.io import frame_at, has_frames
 
     if not has_frames(run.dir):
@@ -31,7 +31,10 @@ def _frame_metrics_near(run: Any, step: int) -> dict[str, float]:
         return {}
     steps = pd.Series(frames["step"].unique())
     nearest = int(steps.iloc[(steps - step).abs().idxmin()])
-    fm = frame_metrics(frame_at(frames, nearest))
+    frame = frame_at(frames, nearest)
+    if len(frame) < MIN_VORONOI_POINTS:  # no tessellation: the order metrics stay NaN
+        return {}
+    fm = frame_metrics(frame)
     return {k: float(fm[k]) for k in ("n5", "n6", "n7", "Psi6")}
 
 

@@ -91,8 +91,29 @@ def snapshot(frame: pd.DataFrame, width: float, height: float, piston_h: float |
     return fig
 
 
+#: a bed with fewer particles than this gets :func:`height_vs_time` (the single-particle bounce)
+FEW_PARTICLES = 3
+
+
+def height_vs_time(frames: pd.DataFrame) -> Figure:
+    """Height y [D1] of each particle above the bottom wall against t [T] (thesis §2.3.4: the
+    single magnet's fall and bounces on the wall's magnetic repulsion)."""
+    fig, ax = plt.subplots(figsize=(6, 3.6))
+    for pid, part in frames.groupby("id", sort=True):
+        ax.plot(part["t"], part["y"], lw=1, label=f"particle {int(pid)}")
+    ax.set_xlabel(r"$t$ [$T=\sqrt{D_1/g}$]")
+    ax.set_ylabel(r"height $y$ [$D_1$]")
+    ax.set_ylim(bottom=0)
+    if frames["id"].nunique() > 1:
+        ax.legend(frameon=False)
+    ax.set_title("height above the bottom wall")
+    fig.tight_layout()
+    return fig
+
+
 def save_run_plots(run_dir: str | Path, out: str | Path | None = None) -> list[Path]:
-    """Write the standard figures of a run directory; return their paths."""
+    """Write the standard figures of a run directory; return their paths (a run of fewer than
+    FEW_PARTICLES particles adds ``height_vs_t.png``, :func:`height_vs_time`)."""
     run_dir = Path(run_dir)
     out = Path(out) if out else run_dir / "plots"
     out.mkdir(parents=True, exist_ok=True)
@@ -123,6 +144,8 @@ def save_run_plots(run_dir: str | Path, out: str | Path | None = None) -> list[P
         diam = diam if isinstance(diam, list) else [diam]
         diameters = {k + 1: float(d) for k, d in enumerate(diam)}
         fr = io.frames(run_dir)
+        if not fr.empty and int(fr.groupby("step").size().max()) < FEW_PARTICLES:
+            save(height_vs_time(fr), "height_vs_t.png")
         steps = np.sort(fr["step"].unique())
         picks = sorted({int(steps[0]), int(steps[len(steps) // 2]), int(steps[-1])})
         if pis is not None and pis["phase"].isin([2]).any():

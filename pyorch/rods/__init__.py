@@ -12,6 +12,7 @@ the quadratic well's ODE), and the figures of the slides.
 """
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -268,6 +269,34 @@ def steady_state(run_dir: str | Path) -> dict[str, float]:
 
 
 # ----------------------------------------------------------------------------- figures
+#: the &output key that switches each file off
+_OFF_KEY = {"histograms.dat": "histogram_every = 0", "history.dat": "history_every = 0"}
+
+
+def _say(msg: str) -> None:
+    """What a figure or table of this kind leaves out, and why (stderr)."""
+    print(f"pyorch: rods: {msg}", file=sys.stderr)
+
+
+def _left_out(missing: list[str]) -> str:
+    """The figures of :func:`save_run_plots` that the missing files leave out."""
+    if "histograms.dat" in missing:
+        return "no distributions.png" + ("; no history.png" if "history.dat" in missing else "")
+    return ("no history.png; distributions.png without the exact steady state (its temperature "
+            "comes from the initial energy in history.dat)")
+
+
+def _steady_densities(b: pd.DataFrame, ss: dict[str, float], p: Params) -> dict[str, F64]:
+    """Exact steady densities at the bin centres of a histogram snapshot ``b``: v_x, v_y
+    [t0/L], |v| [t0/L], theta [1/rad], omega [t0/rad] at the steady temperature ss["T"] [E]."""
+    temp = ss["T"]
+    return {"vx": gaussian(b["vx"], ss["ux"], temp / p.m),
+            "vy": gaussian(b["vy"], ss["uy"], temp / p.m),
+            "speed": p.m * b["speed"] / temp * np.exp(-p.m * b["speed"] ** 2 / (2 * temp)),
+            "theta": theta_density(b["theta"], temp, p),
+            "omega": gaussian(b["omega"], 0.0, temp / p.inertia)}
+
+
 def save_run_plots(run_dir: str | Path, out: str | Path | None = None,
                    full: bool = False) -> list[Path]:
     """The slides' figures: distributions of v_x, v_y, |v|, theta, omega - initial (grey dashed),
@@ -284,24 +313,26 @@ def save_run_plots(run_dir: str | Path, out: str | Path | None = None,
     out.mkdir(parents=True, exist_ok=True)
     written: list[Path] = []
     p = params(run_dir)
-    ss = steady_state(run_dir)
-    temp = ss["T"]
-    if (run_dir / "histograms.dat").is_file():
+    missing = [f for f in _OFF_KEY if not (run_dir / f).is_file()]
+    if missing:
+        _say(f"{run_dir}: " + ", ".join(f"{f} not written ({_OFF_KEY[f]})" for f in missing)
+             + ": " + _left_out(missing))
+    ss = steady_state(run_dir) if "history.dat" not in missing else None
+    if "histograms.dat" not in missing:
         hist = histograms(run_dir)
         a, b = snapshot(hist, "first"), snapshot(hist, "last")
-        panels = [("vx", "f_vx", r"$v_x$", gaussian(b["vx"], ss["ux"], temp / p.m)),
-                  ("vy", "f_vy", r"$v_y$", gaussian(b["vy"], ss["uy"], temp / p.m)),
-                  ("speed", "f_speed", r"$|v|$",
-                   p.m * b["speed"] / temp * np.exp(-p.m * b["speed"] ** 2 / (2 * temp))),
-                  ("theta", "f_theta", r"$\theta$", theta_density(b["theta"], temp, p)),
-                  ("omega", "f_omega", r"$\omega$", gaussian(b["omega"], 0.0, temp / p.inertia))]
+        panels = [("vx", "f_vx", r"$v_x$"), ("vy", "f_vy", r"$v_y$"),
+                  ("speed", "f_speed", r"$|v|$"), ("theta", "f_theta", r"$\theta$"),
+                  ("omega", "f_omega", r"$\omega$")]
         if not p.rotation:
             panels = panels[:3]
+        exact = _steady_densities(b, ss, p) if ss is not None else {}
         fig, axes = plt.subplots(1, len(panels), figsize=(3.0 * len(panels), 2.8))
-        for ax, (x, f, lab, exact) in zip(np.atleast_1d(axes), panels):
+        for ax, (x, f, lab) in zip(np.atleast_1d(axes), panels):
             ax.plot(a[x], a[f], "--", color="0.55", lw=1.2, label="initial")
             ax.plot(b[x], b[f], "o", mfc="none", mec="k", ms=3.5, label=f"t = {b['t'][0]:g}")
-            ax.plot(b[x], exact, "-", color="r", lw=1.2, label="exact steady")
+            if x in exact:
+                ax.plot(b[x], exact[x], "-", color="r", lw=1.2, label="exact steady")
             ax.set_xlabel(lab)
             ax.set_ylim(bottom=0)
         np.atleast_1d(axes)[0].legend(frameon=False, fontsize=7)
@@ -310,12 +341,12 @@ def save_run_plots(run_dir: str | Path, out: str | Path | None = None,
         fig.savefig(out / "distributions.png", dpi=110)
         plt.close(fig)
         written.append(out / "distributions.png")
-    if (run_dir / "history.dat").is_file():
+    if ss is not None:
         h = history(run_dir)
         fig, axes = plt.subplots(1, 3, figsize=(10, 2.8))
         axes[0].plot(h["t"], h["T_trans"], label=r"$T_{trans}$")
         axes[0].plot(h["t"], h["T_rot"], label=r"$T_{rot}$")
-        axes[0].axhline(temp, color="r", lw=0.8, label="steady T")
+        axes[0].axhline(ss["T"], color="r", lw=0.8, label="steady T")
         axes[0].set_xlabel("t")
         axes[0].legend(frameon=False, fontsize=7)
         axes[1].plot(h["t"], h["S1"], label=r"$|\langle e^{i\theta}\rangle|$")
@@ -357,8 +388,13 @@ def save_order_sweep(results: pd.DataFrame, out: str | Path) -> Path:
 
 def write_tables(run_dir: str | Path, out: str | Path | None = None) -> list[Path]:
     """``analysis/steady_state.csv``: the final moments beside the exact steady state (T from
-    the initial energy and momentum), with their differences."""
+    the initial energy and momentum), with their differences (columns quantity, dsmc, exact,
+    difference, unit)."""
     run_dir = Path(run_dir)
+    if not (run_dir / "history.dat").is_file():
+        _say(f"{run_dir}: history.dat not written ({_OFF_KEY['history.dat']}): "
+             "no steady_state.csv")
+        return []
     out = Path(out) if out is not None else run_dir / "analysis"
     out.mkdir(parents=True, exist_ok=True)
     h = history(run_dir)
@@ -370,9 +406,14 @@ def write_tables(run_dir: str | Path, out: str | Path | None = None) -> list[Pat
     rows.append(("E_total", float(last["E_total"]), float(h["E_total"].iloc[0])))
     df = pd.DataFrame(rows, columns=["quantity", "dsmc", "exact"])
     df["difference"] = df["dsmc"] - df["exact"]
+    df["unit"] = "E"  # m L^2/t0^2 per sample, as in history.dat
     path = out / "steady_state.csv"
     df.to_csv(path, index=False)
     return [path]
+
+
+#: units of :func:`default_metrics` (as in history.dat; E = m L^2/t0^2 per sample)
+METRIC_UNITS = {"T": "E", "S1": "1", "S2": "1", "g": "1", "E_rel_change": "1"}
 
 
 #: columns of :func:`default_metrics`
@@ -384,6 +425,9 @@ def default_metrics(run: object) -> dict[str, float]:
     averaged over the last fifth of the history, the coupling g = alpha L^2/T [1] and the
     relative change of the total energy."""
     run_dir = Path(getattr(run, "dir", run))
+    if not (run_dir / "history.dat").is_file():
+        return {**{k: float("nan") for k in METRIC_KEYS},
+                "message": f"history.dat not written ({_OFF_KEY['history.dat']}): no metrics"}
     h = history(run_dir)
     p = params(run_dir)
     last = h.iloc[-max(1, len(h) // 5):]
