@@ -162,7 +162,8 @@ def _check_value(value: Any, where: str, spec: Mapping[str, Any] | None = None,
         if not ok:
             want = {"integer": "an integer", "real": "a number", "logical": ".true. or .false.",
                     "string": "a string"}[ty]
-            raise SceneError(f"{where}: {v!r}: {spec['name']} must be {want}")
+            raise SceneError(f"{where}: {v!r}: &{spec.get('group', '?')} {spec['name']} must be "
+                             f"{want}")
         if ty == "string" and len(v) > spec.get("strlen", len(v)):
             raise SceneError(f"{where}: {v!r}: longer than {spec['strlen']} characters")
 
@@ -191,7 +192,7 @@ def parse_override(text: str, kind: str = "magnet_bed") -> tuple[str, str, Any]:
     group, key = (s.strip().lower() for s in lhs.split(".", 1))
     _check_group(group, kind, where)
     name, idx = _split_key(group, key, where, kind)
-    spec = key_specs(kind)[group][name]
+    spec = dict(key_specs(kind)[group][name], group=group)
     raw = value.strip()
     if spec["type"] == "string" and (bare := bare_string(value)) is not None:
         parsed: Any = bare                     # a string-typed key takes the value as typed
@@ -285,7 +286,7 @@ class Scene:
                 group, key = (s.strip() for s in dotted.lower().split(".", 1))
                 _check_group(group, kind, where)
                 name, idx = _split_key(group, key, where, kind)
-                _check_value(value, where, key_specs(kind)[group][name], idx)
+                _check_value(value, where, dict(key_specs(kind)[group][name], group=group), idx)
                 new.set(group, key, value)
         else:
             for text in overrides:

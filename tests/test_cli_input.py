@@ -26,44 +26,40 @@ def _oscillator_scene(path: Path, title: bytes) -> Path:
 
 # ------------------------------------------------------------------------ bytes in a scene
 @pytest.mark.parametrize("cmd", ["check", "run"])
-def test_latin1_title_is_taken_as_the_engine_takes_it(cmd: str, tmp_path: Path,
-                                                      capsys: pytest.CaptureFixture[str]) -> None:
+def test_latin1_title_is_refused_in_one_clean_line(cmd: str, tmp_path: Path,
+                                                   capsys: pytest.CaptureFixture[str]) -> None:
     """A latin-1 byte (0xE9, 'e acute') in the title used to crash pyorch check/run with a
-    UnicodeDecodeError traceback. The engine takes the byte: so does pyorch, and the run
-    directory's scene.nml keeps it; its figures (which read scene.nml) are drawn."""
+    UnicodeDecodeError traceback. The engine's reader refuses a string that is not UTF-8 (both
+    doors alike): exit 2, one line naming the file, line and key, nothing written; the same
+    title as UTF-8 text runs and scene.nml keeps it byte for byte."""
     nml = _oscillator_scene(tmp_path / "cafe.nml", b"caf\xe9")
     out = tmp_path / "run"
     argv = [cmd, str(nml)]
     if cmd == "run":
         argv += ["--out", str(out), "--quiet", "--no-plots"]
-    assert main(argv) == 0, capsys.readouterr().err
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err == (f"pyorch: error: {nml}: line 1: &scene title = 'caf?': not UTF-8 text (a byte "
+                   f"outside ASCII that starts no UTF-8 character: save the file as UTF-8)\n")
+    assert not out.exists()
+    _oscillator_scene(nml, "café".encode())
+    assert main(argv + ["--set", "oscillator.seed=3"]) == 0, capsys.readouterr().err
     if cmd == "run":
-        assert b"title = 'caf\xe9'" in (out / "scene.nml").read_bytes()
+        assert "title = 'café'" in (out / "scene.nml").read_text(encoding="utf-8")
         assert main(["plot", str(out)]) == 0
 
 
-@pytest.mark.parametrize("cmd", ["check", "run"])
-def test_latin1_title_with_set_is_one_clean_line(cmd: str, tmp_path: Path,
-                                                 capsys: pytest.CaptureFixture[str]) -> None:
-    """With --set pyorch writes the scene again, and cannot write that byte back as it was
-    (f90nml would write the text '\\udce9'): bad input, exit 2, one line naming the scene,
-    the key and the byte, nothing written."""
-    nml = _oscillator_scene(tmp_path / "cafe.nml", b"caf\xe9")
-    out = tmp_path / "run"
-    argv = [cmd, str(nml), "--set", "oscillator.seed=3"]
-    if cmd == "run":
-        argv += ["--out", str(out), "--quiet", "--no-plots"]
-    assert main(argv) == 2
-    err = capsys.readouterr().err
-    assert err == (f"pyorch: error: {nml} (with overrides): &scene title: the value holds byte "
-                   f"0xE9, not UTF-8 text; pyorch can write back only printable UTF-8 text "
-                   f"(save the scene file as UTF-8, or run the file as it is, without --set)\n")
-    assert not out.exists()
-    # the same title as UTF-8 text goes through, byte for byte
-    _oscillator_scene(nml, "café".encode())
-    assert main(argv) == 0, capsys.readouterr().err
-    if cmd == "run":
-        assert "title = 'café'" in (out / "scene.nml").read_text(encoding="utf-8")
+def test_a_string_pyorch_cannot_write_back_is_one_clean_line(capsys: pytest.CaptureFixture[str],
+                                                             tmp_path: Path) -> None:
+    """A non-printable character set from Python (f90nml would write it as a Python escape the
+    engine takes as text) is refused naming the key, nothing written."""
+    from pyorch import SceneError
+    from pyorch.scene import Scene
+
+    sc = Scene.read(RUNS / "oscillator.nml").with_overrides({"scene.title": "tab\there"})
+    with pytest.raises(SceneError, match=r"&scene title: the value holds the character U\+0009"):
+        sc.write(tmp_path / "s.nml")
+    assert not (tmp_path / "s.nml").exists()
 
 
 def test_no_byte_gives_a_traceback(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
