@@ -23,7 +23,7 @@ module ckpt
   private
 
   public :: ckpt_writer_t, ckpt_begin, ckpt_put, ckpt_commit, ckpt_open, ckpt_close, &
-       file_crc64, crc64, ckpt_kind_len, engine_version
+       file_crc64, file_crc64_extend, crc64, ckpt_kind_len, engine_version
 
   character(len=*), parameter :: engine_version = '0.2.0'  !< bound into run.json and checkpoints
 
@@ -37,7 +37,7 @@ module ckpt
   end type ckpt_writer_t
 
   character(len=8), parameter :: magic = 'PYORCKPT'
-  integer(int32), parameter :: format_version = 5
+  integer(int32), parameter :: format_version = 6
   integer, parameter :: ckpt_kind_len = 32
   integer(int32), parameter :: header_len = 8 + 4 + 4 + 16 + ckpt_kind_len + 8 + 8 + 8
   integer, parameter :: chunk = 1048576   !< bytes per read when checksumming
@@ -81,16 +81,15 @@ contains
     crc = not(c)
   end subroutine crc64
 
-  !> CRC-64 of the bytes of unit u (stream, opened for reading) from byte
-  !> position first for nbytes bytes.
+  !> Continue crc over the bytes of unit u (stream, opened for reading) from
+  !> byte position first (1-based) for nbytes bytes (start with crc = 0).
   subroutine unit_crc64(u, first, nbytes, crc, ios)
     integer, intent(in) :: u
     integer(i8), intent(in) :: first, nbytes
-    integer(i8), intent(out) :: crc
+    integer(i8), intent(inout) :: crc
     integer, intent(out) :: ios
     integer(int8), allocatable :: buf(:)
     integer(i8) :: done, m
-    crc = 0
     ios = 0
     allocate(buf(chunk))
     done = 0
@@ -124,6 +123,36 @@ contains
     close(u)
     if (ios /= 0) call set_error(st, exit_io, trim(path)//': cannot read')
   end subroutine file_crc64
+
+  !> Continue crc (the CRC-64 of the file's first `skip` bytes; 0 for none)
+  !> over its next nbytes bytes: the CRC-64 of its first skip + nbytes bytes.
+  !> A file shorter than that is an exit_io error.
+  subroutine file_crc64_extend(path, skip, nbytes, crc, st)
+    character(len=*), intent(in) :: path
+    integer(i8), intent(in) :: skip, nbytes
+    integer(i8), intent(inout) :: crc
+    type(status_t), intent(inout) :: st
+    integer :: u, ios
+    integer(i8) :: n
+    character(len=256) :: iom
+    if (nbytes <= 0) return
+    iom = ''
+    open(newunit=u, file=trim(path), access='stream', form='unformatted', status='old', &
+         action='read', iostat=ios, iomsg=iom)
+    if (ios /= 0) then
+      call set_error(st, exit_io, trim(path)//': cannot open: '//trim(iom))
+      return
+    end if
+    inquire(unit=u, size=n)
+    if (n < skip + nbytes) then
+      ios = 1
+    else
+      call unit_crc64(u, skip + 1, nbytes, crc, ios)
+    end if
+    close(u)
+    if (ios /= 0) call set_error(st, exit_io, trim(path)//': cannot read its bytes for the '// &
+         'checksum')
+  end subroutine file_crc64_extend
 
   ! ---- generic container -------------------------------------------------------
 
@@ -233,6 +262,7 @@ contains
       call refuse('truncated or extended: payload of '//trim(b1)//' bytes, the header '// &
            'records '//trim(b2))
     else
+      crc_now = 0
       call unit_crc64(u, int(header_len, i8) + 1, nbytes, crc_now, ios)
       if (ios /= 0 .or. crc_now /= crc) then
         call refuse('corrupted (payload checksum mismatch)')
