@@ -163,3 +163,45 @@ def test_resumed_twice_is_byte_identical_and_keeps_the_run_id(kind, tmp_path):
     assert json.loads((full / "run.json").read_text())["run_id"] != rid
     for name in outputs(full):
         assert (d / name).read_bytes() == (full / name).read_bytes(), name
+
+
+def crc64_xz(data: bytes, crc: int = 0) -> int:
+    """CRC-64/XZ (ECMA-182, reflected; as xz and the engine's ckpt module), byte by byte."""
+    poly = 0xC96C5795D7870F42
+    c = crc ^ 0xFFFFFFFFFFFFFFFF
+    for byte in data:
+        c ^= byte
+        for _ in range(8):
+            c = (c >> 1) ^ poly if c & 1 else c >> 1
+    return c ^ 0xFFFFFFFFFFFFFFFF
+
+
+def test_the_checkpoint_records_each_outputs_size_and_prefix_crc(tmp_path):
+    """The runner's record in checkpoint.bin (format 6): wall time, units done, run id, file
+    count, names, sizes, CRC-64s; each CRC is the CRC-64/XZ of the file's first `size` bytes
+    (the engine's word-at-a-time CRC gives the byte-by-byte value), and the scene hash in the
+    header is that of scene.nml."""
+    assert crc64_xz(b"123456789") == 0x995DC9BBDF1939FA  # the CRC-64/XZ check value
+    d = paused("oscillator", tmp_path, "r")
+    raw = (d / "checkpoint.bin").read_bytes()
+    assert raw[:8] == b"PYORCKPT" and int.from_bytes(raw[8:12], "little") == 6
+    head = int.from_bytes(raw[12:16], "little")
+    scene_hash = int.from_bytes(raw[head - 24:head - 16], "little")
+    assert scene_hash == crc64_xz((d / "scene.nml").read_bytes())
+    payload = raw[head:]
+    assert int.from_bytes(raw[head - 8:head], "little") == crc64_xz(payload)
+    done = int.from_bytes(payload[8:16], "little")
+    rid = int.from_bytes(payload[16:24], "little")
+    nf = int.from_bytes(payload[24:28], "little")
+    names = [payload[28 + 32 * k:60 + 32 * k].decode().strip() for k in range(nf)]
+    at = 28 + 32 * nf
+    sizes = [int.from_bytes(payload[at + 8 * k:at + 8 * k + 8], "little") for k in range(nf)]
+    at += 8 * nf
+    crcs = [int.from_bytes(payload[at + 8 * k:at + 8 * k + 8], "little") for k in range(nf)]
+    meta = json.loads((d / "run.json").read_text())
+    assert done == meta["steps_done"] == KINDS["oscillator"][3]
+    assert f"{rid:016X}" == meta["run_id"]
+    assert names == outputs(d)
+    for name, size, crc in zip(names, sizes, crcs):
+        data = (d / name).read_bytes()
+        assert size == len(data) and crc == crc64_xz(data), name
