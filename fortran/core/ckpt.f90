@@ -10,8 +10,9 @@
 !> checkpoint survives any failure) and fsyncs the directory. ckpt_open
 !> verifies every header field and the checksum before the caller reads a
 !> byte of payload; ckpt_close checks that the payload was consumed exactly.
-!> The runner puts its own record first (wall time, units done, output file
-!> names and sizes), then the method's payload (method%save_state).
+!> The runner puts its own record first (wall time, units done, run id, the
+!> output files' names, sizes and the CRC-64 of each file's first `size`
+!> bytes), then the method's payload (method%save_state).
 module ckpt
   use, intrinsic :: iso_fortran_env, only: int8, int32
   use kinds, only: dp, i8
