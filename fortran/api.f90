@@ -20,7 +20,7 @@ module api
   public :: run_scene, resume_run, check_scene, resolve_scene, describe_scene, load_scene, n_particles, get_state, &
        set_state, compute_forces, &
        advance_steps, piston_state, model_groups, energies, kernel, precision_probe, &
-       set_threads, list_audit, protocol_times, set_piston, bench_pairs
+       set_threads, list_audit, protocol_times, set_piston, bench_pairs, write_guard_probe
 
 contains
 
@@ -296,6 +296,52 @@ contains
       end do
     end associate
   end subroutine list_audit
+
+  !> The shared write guards of every kind's outputs, exercised directly:
+  !> write `dir/name` fresh with one row at `step` (as_frames = 0: a text
+  !> table through module tables, the step then the values) or one frame
+  !> record (as_frames = 1: binary frames through module frames, one column
+  !> 'x' of the n values). A NaN/Infinity value is refused (code 3, the
+  !> message names the file and the step) and its row or record is not written.
+  subroutine write_guard_probe(dir, name, as_frames, n, values, step, code, message)
+    use tables, only: table_t, table_open, table_line, table_close, rfmt
+    use frames, only: frames_t, frames_open, frames_begin, frames_put, frames_end, frames_close
+    character(len=*), intent(in) :: dir, name
+    integer, intent(in) :: as_frames, n
+    real(dp), intent(in) :: values(n)
+    integer(i8), intent(in) :: step
+    integer, intent(out) :: code
+    character(len=1024), intent(out) :: message
+    type(status_t) :: st, st2
+    type(table_t) :: tb
+    type(frames_t) :: fr
+    character(len=:), allocatable :: line
+    character(len=32) :: buf
+    integer :: k
+    if (as_frames /= 0) then
+      call frames_open(fr, trim(dir)//'/'//trim(name), n, ['x'], [''], ['f8'], 'step', 'T', '', &
+           .false., st)
+      call frames_begin(fr, step, real(step, dp), st)
+      call frames_put(fr, values, st)
+      call frames_end(fr, st)
+      st2 = st
+      call frames_close(fr, st2)
+    else
+      call table_open(tb, dir, name, '# probe table', '# step values', .false., st)
+      write(buf, '(i0)') step
+      line = trim(buf)
+      do k = 1, n
+        write(buf, '('//rfmt//')') values(k)
+        line = line//' '//trim(buf)
+      end do
+      call table_line(tb, line, st)
+      st2 = st
+      call table_close(tb, st2)
+    end if
+    if (st%code == 0) st = st2
+    code = st%code
+    message = st%msg
+  end subroutine write_guard_probe
 
   !> 1 + 2^-40 survives only in double precision (a check of the f2py kind map).
   subroutine precision_probe(x, y)

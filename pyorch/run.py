@@ -148,11 +148,27 @@ def _text(msg: Any) -> str:
     return (msg.decode(errors="replace") if isinstance(msg, bytes) else str(msg)).strip()
 
 
+def _make_parent(out: Path) -> None:
+    """Create the parent directories of run directory ``out``; a failure is a
+    RunError (code 4) with the system's reason (read-only file system,
+    permission denied, not a directory, ...), as the engine reports it."""
+    if out.parent == Path(""):
+        return
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        where = exc.filename if exc.filename is not None else out.parent
+        reason = exc.strerror or str(exc)
+        if isinstance(exc, FileExistsError):
+            reason = "it exists and is not a directory"
+        raise RunError(f"I/O error (exit 4): {where}: cannot create output directory: {reason}",
+                       code=4) from None
+
+
 def _run_f2py(nml: Path, out: Path, overwrite: bool) -> None:
     from pyorch import _engine
 
-    if out.parent != Path(""):
-        out.parent.mkdir(parents=True, exist_ok=True)
+    _make_parent(out)
     code, msg = _engine.api.run_scene(str(nml), str(out), int(overwrite))
     _raise_for(code, _text(msg))
 
@@ -166,7 +182,7 @@ def _raise_for(code: int, text: str) -> None:
 
 
 def _run_exe(nml: Path, out: Path, progress: bool, threads: int | None, overwrite: bool) -> None:
-    out.parent.mkdir(parents=True, exist_ok=True)
+    _make_parent(out)
     cmd = [str(engine_executable()), str(nml), "--out", str(out)]
     if overwrite:
         cmd.append("--overwrite")

@@ -83,13 +83,19 @@ contains
 
   ! ---- checked files ------------------------------------------------------------
 
-  !> Text of the last OS error (errno), e.g. 'No space left on device'.
-  function os_error() result(msg)
+  !> Text of the last OS error (errno), e.g. 'No space left on device', or of
+  !> the error number `errnum` (an errno kept before other calls could change it).
+  function os_error(errnum) result(msg)
+    integer, intent(in), optional :: errnum
     character(len=:), allocatable :: msg
     character(kind=c_char), pointer :: cs(:)
     type(c_ptr) :: p
     integer :: e, k
-    e = ierrno()
+    if (present(errnum)) then
+      e = errnum
+    else
+      e = ierrno()
+    end if
     p = c_strerror(int(e, c_int))
     msg = 'unknown error'
     if (.not. c_associated(p)) return
@@ -239,11 +245,15 @@ contains
     rc = c_fclose(fp)
   end subroutine sync_dir
 
-  !> Create a directory (parents must exist); an existing one is fine.
+  !> Create a directory (parents must exist); an existing one is fine. A
+  !> failure names the system's reason (errno of mkdir itself, kept before
+  !> any other call: read-only file system, permission denied, not a
+  !> directory, ...).
   subroutine make_dir(path, st)
     character(len=*), intent(in) :: path
     type(status_t), intent(inout) :: st
     integer(c_int) :: rc
+    integer :: e
     logical :: there
     if (len_trim(path) == 0) then
       call set_error(st, exit_io, 'the output directory name is empty')
@@ -252,9 +262,17 @@ contains
     inquire(file=trim(path)//'/.', exist=there)
     if (there) return
     rc = c_mkdir(trim(path)//c_null_char, int(o'755', c_int))
+    if (rc == 0) return
+    e = ierrno()
     inquire(file=trim(path)//'/.', exist=there)
-    if (.not. there) call set_error(st, exit_io, trim(path)//': cannot create output directory: ' &
-         //os_error())
+    if (there) return                  ! created meanwhile (another process)
+    if (file_exists(path)) then
+      call set_error(st, exit_io, trim(path)//': cannot create output directory: it exists '// &
+           'and is not a directory')
+    else
+      call set_error(st, exit_io, trim(path)//': cannot create output directory: '// &
+           os_error(e))
+    end if
   end subroutine make_dir
 
 
@@ -279,7 +297,8 @@ contains
       return
     end if
     if (c_truncate(trim(path)//c_null_char, int(length, c_long)) /= 0) &
-         call set_error(st, exit_io, trim(path)//': cannot truncate to the checkpoint')
+         call set_error(st, exit_io, trim(path)//': cannot truncate to the checkpoint: '// &
+         os_error())
   end subroutine truncate_file
 
 end module files

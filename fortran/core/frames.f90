@@ -35,11 +35,15 @@
 !>   before a checkpoint: call frames_flush(fr, st);  at the end: call frames_close(fr, st)
 !> Every byte goes through the checked C-stdio files of module files (a
 !> failed write is an exit_io status naming the file); a misuse (wrong
-!> column order, size or type) is an exit_internal status.
+!> column order, size or type) is an exit_internal status. A record is
+!> assembled in memory and written whole by frames_end: a non-finite time
+!> or real value (NaN, Infinity) is an exit_numerical status naming the
+!> file, the step and the column, and that record is not written.
 module frames
   use, intrinsic :: iso_fortran_env, only: int8, int32, int64
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use kinds, only: dp, i8
-  use errors, only: status_t, set_error, exit_ok, exit_io, exit_internal
+  use errors, only: status_t, set_error, exit_ok, exit_io, exit_internal, exit_numerical
   use files, only: cfile_t, cf_open, cf_is_open, cf_write, cf_sync, cf_close, file_exists
   use scene_input, only: int_str
   implicit none
@@ -59,6 +63,10 @@ module frames
     character(len=2), allocatable :: dtype(:)   !< per column: 'i4' | 'f8'
     integer :: next = -1                    !< columns written in the open record (-1: none open)
     integer(i8) :: header_bytes = 0, record_bytes = 0
+    character(len=32), allocatable :: name(:)   !< per column (for messages)
+    integer(int8), allocatable :: rec(:)    !< the open record (record_bytes), written by frames_end
+    integer(i8) :: fill = 0                 !< bytes of rec given so far
+    integer(i8) :: step = 0                 !< step of the open record
   end type frames_t
 
   interface frames_put
@@ -119,6 +127,10 @@ contains
     head = header(fr, names, units, step_name, time_unit, meta)
     fr%header_bytes = size(head, kind=i8)
     fr%next = -1
+    fr%name = [(names(k)(1:min(32, len(names(k)))), k = 1, size(names))]
+    if (allocated(fr%rec)) deallocate(fr%rec)
+    allocate(fr%rec(fr%record_bytes))
+    fr%fill = 0
     if (append) then
       call check_existing(fr, path, head, st)
       if (st%code /= exit_ok) return
@@ -140,7 +152,13 @@ contains
       call set_error(st, exit_internal, fr%f%path//': frames_begin inside an open record')
       return
     end if
-    call cf_write(fr%f, [transfer(int(step, int64), [0_int8]), transfer(t, [0_int8])], st)
+    fr%step = step
+    if (.not. ieee_is_finite(t)) then
+      call refuse_non_finite(fr, 'its time', st)
+      return
+    end if
+    fr%rec(1:16) = [transfer(int(step, int64), [0_int8]), transfer(t, [0_int8])]
+    fr%fill = 16
     fr%next = 0
   end subroutine frames_begin
 
@@ -149,30 +167,59 @@ contains
     type(frames_t), intent(inout) :: fr
     integer(int32), intent(in) :: a(:)
     type(status_t), intent(inout) :: st
+    integer(i8) :: m
     if (.not. next_ok(fr, 'i4', size(a), st)) return
-    if (fr%n > 0) call cf_write(fr%f, transfer(a, [0_int8]), st)
+    m = 4*int(fr%n, i8)
+    if (fr%n > 0) fr%rec(fr%fill + 1:fr%fill + m) = transfer(a, [0_int8])
+    fr%fill = fr%fill + m
     fr%next = fr%next + 1
   end subroutine put_i4
 
-  !> The next column of the open record, real(dp) values.
+  !> The next column of the open record, real(dp) values (all finite).
   subroutine put_f8(fr, a, st)
     type(frames_t), intent(inout) :: fr
     real(dp), intent(in) :: a(:)
     type(status_t), intent(inout) :: st
+    integer(i8) :: m
+    integer :: bad
     if (.not. next_ok(fr, 'f8', size(a), st)) return
-    if (fr%n > 0) call cf_write(fr%f, transfer(a, [0_int8]), st)
+    if (.not. all(ieee_is_finite(a))) then
+      bad = findloc(ieee_is_finite(a), .false., 1)
+      call refuse_non_finite(fr, 'column '''//trim(fr%name(fr%next + 1))//''' (value '// &
+           int_str(int(bad, i8))//' of '//int_str(int(fr%n, i8))//')', st)
+      return
+    end if
+    m = 8*int(fr%n, i8)
+    if (fr%n > 0) fr%rec(fr%fill + 1:fr%fill + m) = transfer(a, [0_int8])
+    fr%fill = fr%fill + m
     fr%next = fr%next + 1
   end subroutine put_f8
 
-  !> Close the record: every column must have been given.
+  !> Close the record: every column must have been given; the record is written.
   subroutine frames_end(fr, st)
     type(frames_t), intent(inout) :: fr
     type(status_t), intent(inout) :: st
     if (st%code /= exit_ok .or. .not. cf_is_open(fr%f)) return
-    if (fr%next /= size(fr%dtype)) call set_error(st, exit_internal, fr%f%path// &
-         ': frames_end: a record misses columns')
+    if (fr%next /= size(fr%dtype) .or. fr%fill /= fr%record_bytes) then
+      call set_error(st, exit_internal, fr%f%path//': frames_end: a record misses columns')
+    else
+      call cf_write(fr%f, fr%rec, st)
+    end if
     fr%next = -1
+    fr%fill = 0
   end subroutine frames_end
+
+  !> The record of fr%step holds a non-finite number (in `what`): refused, not written.
+  subroutine refuse_non_finite(fr, what, st)
+    type(frames_t), intent(inout) :: fr
+    character(len=*), intent(in) :: what
+    type(status_t), intent(inout) :: st
+    call set_error(st, exit_numerical, fr%f%path//': the state became non-finite at step '// &
+         int_str(fr%step)//': '//what//' is NaN or Infinity; the frame was refused (not '// &
+         'written) and the run stops here')
+    fr%next = -1
+    fr%fill = 0
+  end subroutine refuse_non_finite
 
   !> Hand the buffered bytes to the OS (before a checkpoint reads the size).
   subroutine frames_flush(fr, st)
@@ -187,6 +234,7 @@ contains
     type(status_t), intent(inout) :: st
     call cf_close(fr%f, st, sync=.true.)
     fr%next = -1
+    fr%fill = 0
   end subroutine frames_close
 
   ! ---- inside ----------------------------------------------------------------------

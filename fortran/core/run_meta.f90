@@ -19,9 +19,10 @@ contains
   !> run.json: the shared members, then the method's (json_fields). Written
   !> through the checked layer and renamed into place; fsynced for a final
   !> status (the 'running' updates are only flushed).
-  subroutine write_run_json(dir, m, kind, scene_path, status, code, message, done, total, &
-       t_now, wall, st)
+  subroutine write_run_json(dir, m, kind, scene_path, run_id, status, code, message, done, &
+       total, t_now, wall, st)
     character(len=*), intent(in) :: dir, kind, scene_path, status, message
+    integer(i8), intent(in) :: run_id   !< the run's random id (also in its checkpoints)
     class(method_t), intent(in) :: m
     integer, intent(in) :: code
     integer(i8), intent(in) :: done, total
@@ -31,16 +32,19 @@ contains
     type(cfile_t) :: f
     character(len=:), allocatable :: tmp, text
     character(len=1), parameter :: nl = achar(10)
+    character(len=16) :: id_hex
     real(dp) :: per_step
     tmp = trim(dir)//'/.run.json.tmp'
     per_step = 0
     if (done > 0) per_step = wall/real(done, dp)
+    write(id_hex, '(z16.16)') run_id
     text = '{'//nl// &
          '  "program": "partsim",'//nl// &
          '  "version": "'//trim(engine_version)//'",'//nl// &
          '  "compiler": "'//json_escape(compiler_id())//'",'//nl// &
          '  "kind": "'//json_escape(trim(kind))//'",'//nl// &
          '  "scene": "'//json_escape(trim(scene_path))//'",'//nl// &
+         '  "run_id": "'//id_hex//'",'//nl// &
          '  "status": "'//json_escape(trim(status))//'",'//nl// &
          '  "exit_code": '//istr(int(code, i8))//','//nl// &
          '  "message": "'//json_escape(trim(message))//'",'//nl// &

@@ -4,8 +4,12 @@
 !> checkpoint_every units), stop cleanly on a guard (checkpoint_failed.bin),
 !> a signal or --stop-at, write run.json; resume from a verified checkpoint
 !> with the output files cut back to their checkpoint sizes (never padded),
-!> so a resumed run is byte-identical to an uninterrupted one. Both doors
-!> (executable and f2py module) go through sim_execute / sim_resume.
+!> so a resumed run is byte-identical to an uninterrupted one. A checkpoint
+!> is bound to its outputs: it records each output's size and the CRC-64 of
+!> its bytes up to that size (kept incrementally: a checkpoint reads only
+!> the bytes written since the previous one), and a resume verifies every
+!> output (exists, long enough, same prefix CRC) before it cuts any. Both
+!> doors (executable and f2py module) go through sim_execute / sim_resume.
 module runner
   use, intrinsic :: iso_fortran_env, only: output_unit
   use kinds, only: dp, i8
@@ -18,7 +22,7 @@ module runner
   use files, only: file_exists, remove_file, make_dir, truncate_file, cfile_t, cf_open, &
        cf_write, cf_close
   use ckpt, only: ckpt_writer_t, ckpt_begin, ckpt_put, ckpt_commit, ckpt_open, ckpt_close, &
-       file_crc64
+       file_crc64, file_crc64_extend, crc64
   use run_meta, only: write_run_json
   use signals, only: stop_requested, stop_signal
   implicit none
@@ -41,6 +45,10 @@ module runner
     character(len=kind_len) :: kind = ''
     character(len=:), allocatable :: dir, scene_path
     integer(i8) :: hash = 0               !< CRC-64 of the resolved scene.nml
+    integer(i8) :: run_id = 0             !< random at a fresh start, kept by resumes
+    !> per output file (output_files order): bytes covered by out_crc, and the
+    !> CRC-64 of the file's first out_bytes bytes (extended at each checkpoint)
+    integer(i8) :: out_bytes(max_out_files) = 0, out_crc(max_out_files) = 0
     integer(i8) :: clock0 = 0             !< system_clock at this process' start
     real(dp) :: wall_before = 0           !< wall time of earlier segments [s]
     integer(i8) :: progress_every = 1
@@ -128,6 +136,7 @@ contains
     if (st%code /= 0) return
     r%dir = trim(dir)
     r%progress = progress
+    r%run_id = new_run_id()
     call clear_dir(r, overwrite, st)
     if (st%code /= 0) return
     call make_dir(r%dir, st)
@@ -150,8 +159,11 @@ contains
 
   !> Continue a run directory from its last checkpoint. The checkpoint must
   !> be intact (checksum), of this engine and kind, and bound to the run's
-  !> scene.nml (hash); every output file must be at least as long as at the
-  !> checkpoint (it is cut back, never padded).
+  !> scene.nml (hash); every output file must exist, be at least as long as
+  !> at the checkpoint and hold the bytes the checkpoint recorded (CRC-64 of
+  !> its first `size` bytes). All of that is checked before any file is
+  !> touched: a refused resume leaves the directory as it was. Then the
+  !> outputs are cut back (never padded) and continued.
   subroutine sim_resume(dir, progress, stop_at, st)
     character(len=*), intent(in) :: dir
     logical, intent(in) :: progress
@@ -159,7 +171,7 @@ contains
     type(status_t), intent(inout) :: st
     type(run_t) :: r
     character(len=fname_len) :: names(max_out_files), now(max_out_files)
-    integer(i8) :: sizes(max_out_files)
+    integer(i8) :: sizes(max_out_files), crcs(max_out_files)
     integer :: k, nfiles, nnow
     if (len_trim(dir) == 0) then
       call set_error(st, exit_io, 'the run directory name is empty')
@@ -177,6 +189,7 @@ contains
     if (st%code /= 0) return
     if (.not. file_exists(r%dir//'/'//ckpt_name)) then
       ! killed before the step-0 checkpoint was on disk: start again from step 0
+      r%run_id = new_run_id()
       call start(r, .false., st)
       if (st%code /= 0) return
       call save(r, ckpt_name, st)
@@ -187,7 +200,7 @@ contains
       call run_loop(r, stop_at, st)
       return
     end if
-    call restore(r, names, sizes, nfiles, st)
+    call restore(r, names, sizes, crcs, nfiles, st)
     if (st%code /= 0) return
     call r%m%output_files(now, nnow)
     if (nnow /= nfiles .or. any(now(1:nnow) /= names(1:nfiles))) then
@@ -195,14 +208,71 @@ contains
            'files than the scene writes')
       return
     end if
+    do k = 1, nfiles      ! every file verified before any is cut
+      call verify_output(r%dir, trim(names(k)), sizes(k), crcs(k), st)
+      if (st%code /= 0) return
+    end do
     do k = 1, nfiles
       call truncate_file(r%dir//'/'//trim(names(k)), sizes(k), st)
+      if (st%code /= 0) return
     end do
-    if (st%code /= 0) return
+    r%out_bytes(1:nfiles) = sizes(1:nfiles)
+    r%out_crc(1:nfiles) = crcs(1:nfiles)
     call start(r, .true., st)
     if (st%code /= 0) return
     call run_loop(r, stop_at, st)
   end subroutine sim_resume
+
+  !> An output file a checkpoint recorded with `size` bytes and the CRC-64
+  !> `crc` of them: it must exist (unless size 0), be at least that long and
+  !> start with those bytes. Reads only; the message names the file.
+  subroutine verify_output(dir, name, size, crc, st)
+    character(len=*), intent(in) :: dir, name
+    integer(i8), intent(in) :: size, crc
+    type(status_t), intent(inout) :: st
+    character(len=:), allocatable :: path
+    integer(i8) :: now, c
+    character(len=64) :: b
+    path = dir//'/'//name
+    if (.not. file_exists(path)) then
+      if (size > 0) call set_error(st, exit_io, path//': missing output file to resume')
+      return
+    end if
+    inquire(file=path, size=now)
+    if (now < size) then
+      write(b, '(i0,a,i0)') now, ' bytes, the checkpoint recorded ', size
+      call set_error(st, exit_io, path//': refused: shorter than at the checkpoint ('// &
+           trim(b)//'); the run directory is damaged')
+      return
+    end if
+    c = 0
+    call file_crc64_extend(path, 0_i8, size, c, st)
+    if (st%code /= 0) return
+    if (c /= crc) then
+      write(b, '(i0)') size
+      call set_error(st, exit_io, path//': refused: output '//name//' does not belong to '// &
+           'this checkpoint: its first '//trim(b)//' bytes differ from those '//ckpt_name// &
+           ' recorded (CRC-64): the file was changed, or the checkpoint comes from another run')
+    end if
+  end subroutine verify_output
+
+  !> A random 64-bit run id (/dev/urandom; else clock and process id mixed by CRC-64).
+  integer(i8) function new_run_id() result(id)
+    integer :: u, ios
+    integer(i8) :: c
+    id = 0
+    open(newunit=u, file='/dev/urandom', access='stream', form='unformatted', status='old', &
+         action='read', iostat=ios)
+    if (ios == 0) then
+      read(u, iostat=ios) id
+      close(u)
+    end if
+    if (ios /= 0 .or. id == 0) then
+      call system_clock(c)
+      id = 0
+      call crc64(id, transfer([c, int(getpid(), i8)], [0_int8]))
+    end if
+  end function new_run_id
 
   subroutine load(r, path, st)
     type(run_t), intent(inout) :: r
@@ -323,46 +393,71 @@ contains
     integer(i8) :: done, total
     real(dp) :: t
     call r%m%counters(done, total, t)
-    call write_run_json(r%dir, r%m, r%kind, r%scene_path, status, st%code, trim(st%msg), done, &
-         total, t, wall_time(r), st)
+    call write_run_json(r%dir, r%m, r%kind, r%scene_path, r%run_id, status, st%code, &
+         trim(st%msg), done, total, t, wall_time(r), st)
   end subroutine run_json
 
   !> Checkpoint `name` after flushing the outputs; if the flush fails no
   !> checkpoint is written (the previous one stays valid). The runner's
-  !> record (wall time, units done, output names and sizes) comes first,
-  !> then the method's payload.
+  !> record (wall time, units done, run id, output names, sizes and prefix
+  !> CRC-64s) comes first, then the method's payload.
   subroutine save(r, name, st)
     type(run_t), intent(inout) :: r
     character(len=*), intent(in) :: name
     type(status_t), intent(inout) :: st
     character(len=fname_len) :: names(max_out_files)
-    integer(i8) :: sizes(max_out_files), done, total
-    integer :: k, n
+    integer(i8) :: done, total
+    integer :: n
     real(dp) :: t
     type(ckpt_writer_t) :: w
     integer(int8), parameter :: b(0) = [integer(int8) ::]
     call r%m%close_outputs(.true., st)
     if (st%code /= 0) return
     call r%m%output_files(names, n)
-    do k = 1, n
-      inquire(file=r%dir//'/'//trim(names(k)), size=sizes(k))
-    end do
+    call extend_crcs(r, names, n, st)
+    if (st%code /= 0) return
     call r%m%counters(done, total, t)
     call ckpt_begin(w, r%dir//'/'//name)
-    call ckpt_put(w, [transfer(wall_time(r), b), transfer(done, b), transfer(int(n, int32), b)])
+    call ckpt_put(w, [transfer(wall_time(r), b), transfer(done, b), transfer(r%run_id, b), &
+         transfer(int(n, int32), b)])
     if (n > 0) then
       call ckpt_put(w, transfer(names(1:n), b))
-      call ckpt_put(w, transfer(sizes(1:n), b))
+      call ckpt_put(w, transfer(r%out_bytes(1:n), b))
+      call ckpt_put(w, transfer(r%out_crc(1:n), b))
     end if
     call r%m%save_state(w)
     call ckpt_commit(w, r%kind, r%hash, st)
   end subroutine save
 
+  !> Bring each output's prefix CRC up to its present size, reading only the
+  !> bytes written since the last checkpoint (the files only grow between
+  !> checkpoints; one found shorter is checksummed again from its start).
+  subroutine extend_crcs(r, names, n, st)
+    type(run_t), intent(inout) :: r
+    character(len=fname_len), intent(in) :: names(max_out_files)
+    integer, intent(in) :: n
+    type(status_t), intent(inout) :: st
+    integer(i8) :: now
+    integer :: k
+    do k = 1, n
+      inquire(file=r%dir//'/'//trim(names(k)), size=now)
+      now = max(now, 0_i8)
+      if (now < r%out_bytes(k)) then
+        r%out_bytes(k) = 0
+        r%out_crc(k) = 0
+      end if
+      call file_crc64_extend(r%dir//'/'//trim(names(k)), r%out_bytes(k), now - r%out_bytes(k), &
+           r%out_crc(k), st)
+      if (st%code /= 0) return
+      r%out_bytes(k) = now
+    end do
+  end subroutine extend_crcs
+
   !> Verify the checkpoint (container), read the runner's record and the method's payload.
-  subroutine restore(r, names, sizes, nfiles, st)
+  subroutine restore(r, names, sizes, crcs, nfiles, st)
     type(run_t), intent(inout) :: r
     character(len=fname_len), intent(out) :: names(max_out_files)
-    integer(i8), intent(out) :: sizes(max_out_files)
+    integer(i8), intent(out) :: sizes(max_out_files), crcs(max_out_files)
     integer, intent(out) :: nfiles
     type(status_t), intent(inout) :: st
     integer :: u, ios
@@ -372,12 +467,13 @@ contains
     path = r%dir//'/'//ckpt_name
     names = ''
     sizes = 0
+    crcs = 0
     nfiles = 0
     call ckpt_open(path, r%kind, r%hash, u, st)
     if (u == -1) return
-    read(u, iostat=ios) r%wall_before, done, nf
+    read(u, iostat=ios) r%wall_before, done, r%run_id, nf
     if (ios == 0 .and. (nf < 0 .or. nf > max_out_files)) ios = 1
-    if (ios == 0 .and. nf > 0) read(u, iostat=ios) names(1:nf), sizes(1:nf)
+    if (ios == 0 .and. nf > 0) read(u, iostat=ios) names(1:nf), sizes(1:nf), crcs(1:nf)
     if (ios == 0) then
       nfiles = nf
       call r%m%restore_state(u, st)

@@ -10,6 +10,7 @@ module output
   use model, only: model_t
   use state, only: state_t
   use files, only: cfile_t, cf_open, cf_is_open, cf_line, cf_sync, cf_close
+  use tables, only: row_guard
   use frames, only: frames_t, frames_open, frames_begin, frames_put, frames_end, frames_flush, &
        frames_close, json_real
   implicit none
@@ -147,8 +148,9 @@ contains
     type(output_t), intent(inout) :: o
     integer, intent(in) :: k
     character(len=*), intent(in) :: line
-    if (o%st%code /= exit_ok) return
-    call cf_line(o%f(k), line, o%st)
+    if (o%st%code /= exit_ok .or. .not. cf_is_open(o%f(k))) return
+    call row_guard(o%f(k)%path, line, o%st)   ! a non-finite number: refused, not written
+    if (o%st%code == exit_ok) call cf_line(o%f(k), line, o%st)
   end subroutine put
 
   subroutine write_piston(o, s, phi)
