@@ -97,7 +97,7 @@ METADATA_KEYS = ("bounds", "sequence_length", "default_connectivity_radius", "di
                  "vel_mean", "vel_std", "acc_mean", "acc_std")
 STAT_RTOL = 1e-9                     # recomputed statistics vs metadata.json (summation order)
 DT_RTOL = 1e-9                       # frame spacing: uniform within a trajectory and across
-SAMPLE_FRAMES = 1000                 # frames sampled for the connectivity radius (bench/RESULTS.md 28)
+SAMPLE_FRAMES = 1000                 # frames sampled for the radius (bench/RESULTS.md, 28)
 FRAME_RANGES = 5                     # frame ranges of the neighbour count in dataset.json
 GNS_NOISE_STD = 6.7e-4               # gns' default noise_std (config.yaml data.noise_std)
 WATERDROP_VEL_STD = (0.0013973410613251076, 0.00131291713199288)  # DeepMind WaterDrop metadata

@@ -635,6 +635,9 @@ def test_example_specs_check() -> None:
     for path in sorted((ROOT / "runs" / "datasets").glob("*.toml")):
         common = gns.DatasetSpec.from_toml(path).check()
         assert common["frames"] >= gns.MIN_FRAMES
+    # the training set is written in box units (gns' scale), the quick one in a
+    assert gns.DatasetSpec.from_toml(ROOT / "runs" / "datasets" / "gns_train.toml").unit_box
+    assert not gns.DatasetSpec.from_toml(QUICK).unit_box
 
 
 def test_statistics_of_a_uniform_field_are_per_frame(client, tmp_path: Path) -> None:
