@@ -204,11 +204,19 @@ def sample_frames(trajectories: Sequence[NDArray[Any]],
 
 def frame_neighbours(frame: NDArray[Any], radius: float) -> float:
     """Mean number of other particles within ``radius`` of a particle (r < radius, as gns'
-    radius graph) in one frame (N, dim)."""
-    from scipy.spatial.distance import pdist
+    radius graph) in one frame (N, dim); a k-d tree, memory O(N x neighbours)."""
+    return 2.0 * _close_pairs(frame, radius, strict=True).size / len(frame)
+
+
+def _close_pairs(frame: NDArray[Any], radius: float, strict: bool = False) -> NDArray[np.float64]:
+    """Sorted distances of the particle pairs of a frame (N, dim) closer than ``radius``
+    (d <= radius; d < radius with ``strict``), each pair once."""
+    from scipy.spatial import cKDTree
 
     f = np.asarray(frame, dtype=np.float64)
-    return 2.0 * np.count_nonzero(pdist(f) < radius) / f.shape[0]
+    pairs = cKDTree(f).query_pairs(radius, output_type="ndarray")
+    d = np.sort(np.sqrt(((f[pairs[:, 0]] - f[pairs[:, 1]]) ** 2).sum(axis=1)))
+    return d[:np.searchsorted(d, radius, side="left")] if strict else d
 
 
 def mean_neighbours(frames: Sequence[NDArray[Any]], radius: float) -> float:
@@ -240,20 +248,29 @@ def connectivity_radius(trajectories: Sequence[NDArray[Any]], target: float,
     """The radius (position units) at which a particle has ``target`` neighbours on average over
     :func:`sample_frames` of ``trajectories`` (every trajectory, over its whole length: the
     measured density, walls, clusters and its drift in time included), and the mean neighbour
-    count measured at it. SceneError if the particles are too few."""
-    from scipy.spatial.distance import pdist
-
+    count measured at it. SceneError if the particles are too few. Only the pairs closer than
+    an upper bound are kept (k-d tree; the bound starts at twice the radius of a uniform
+    density and doubles until it holds the target), so memory is O(frames x N x neighbours),
+    not O(frames x N^2)."""
     frames, _ = sample_frames(trajectories, max_frames)
     n_min = min(f.shape[0] for f in frames)
     if target <= 0 or target >= n_min - 1:
         raise SceneError(f"[gns] target_neighbours = {target}: must lie in (0, {n_min - 1}) with "
                          f"{n_min} particles; give [gns] connectivity_radius instead")
-    dists = [(np.sort(pdist(f)), f.shape[0]) for f in frames]
+    span = max(float(np.ptp(f, axis=0).max()) for f in frames)
+    n_mean = float(np.mean([f.shape[0] for f in frames]))
+    hi = 2.0 * math.sqrt(target * span ** 2 / (math.pi * n_mean)) or 1.0   # 1: one point
+    while True:
+        dists = [(_close_pairs(f, hi), f.shape[0]) for f in frames]
 
-    def count(r: float) -> float:
-        return float(np.mean([2.0 * np.searchsorted(d, r, side="left") / n for d, n in dists]))
+        def count(r: float) -> float:
+            return float(np.mean([2.0 * np.searchsorted(d, r, side="left") / n
+                                  for d, n in dists]))
 
-    lo, hi = 0.0, float(max(d[-1] for d, _ in dists)) * (1 + 1e-12)
+        if count(hi) >= target or hi > 2.0 * span:     # then every pair is held
+            break
+        hi *= 2.0
+    lo = 0.0
     for _ in range(80):
         mid = 0.5 * (lo + hi)
         lo, hi = (mid, hi) if count(mid) < target else (lo, mid)

@@ -135,6 +135,31 @@ def test_connectivity_radius_gives_the_target_neighbours() -> None:
         gns.connectivity_radius([rng.uniform(0, 5, size=(3, 10, 2))], 15.0)
 
 
+def _brute_radius(frames, target: float) -> float:
+    """The smallest pair distance d* such that a radius just above it gives a mean count >=
+    target: every pair distance of every frame, weighted 2 / (N F), sorted and summed."""
+    from scipy.spatial.distance import pdist
+
+    d = np.concatenate([pdist(f) for f in frames])
+    w = np.concatenate([np.full(len(f) * (len(f) - 1) // 2, 2.0 / (len(f) * len(frames)))
+                        for f in frames])
+    order = np.argsort(d, kind="stable")
+    return float(d[order][np.searchsorted(np.cumsum(w[order]), target - 1e-12)])
+
+
+@pytest.mark.parametrize("n, target", [(150, 15.0), (20, 18.9)])
+def test_connectivity_radius_is_exact_against_every_pair(n: int, target: float) -> None:
+    """Against the full distance list of the sampled frames (what the k-d tree's bounded pair
+    list must reproduce): the radius lies just above the critical distance. 18.9 of 19
+    neighbours needs more than twice the uniform-density radius (the bound's doubling)."""
+    rng = np.random.default_rng(n)
+    trajs = [rng.uniform(0, 10, size=(4, n, 2)) for _ in range(3)]
+    r, at = gns.connectivity_radius(trajs, target)
+    d_star = _brute_radius(gns.sample_frames(trajs)[0], target)
+    assert d_star < r <= d_star * (1 + 1e-9) and at >= target
+    assert gns.mean_neighbours(gns.sample_frames(trajs)[0], d_star) < target
+
+
 def _densifying(n_traj: int, frames: int = 25, n: int = 40, side: float = 20.0,
                 squeeze: float = 0.3) -> list[np.ndarray]:
     """Trajectories whose particles (uniform in the box at frame 0) are pressed towards the
