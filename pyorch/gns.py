@@ -7,13 +7,15 @@ of the others) and writes a dataset directory::
 
     train.npz valid.npz test.npz   one key per trajectory, simulation_trajectory_<i> (i: the
                                    trajectory's index in the spec's point order), each value an
-                                   object array (positions float32 (frames, N, 2) [a],
-                                   particle_type int64 (N,))
+                                   object array (positions float32 (frames, N, 2) [a, or
+                                   the box side L with unit_box], particle_type int64 (N,))
     metadata.json                  bounds, sequence_length (= frames, see below), dim, dt (time between
-                                   frames [T]), default_connectivity_radius [a], vel_mean/std,
-                                   acc_mean/std, boundary_augment
+                                   frames [T]), default_connectivity_radius, vel_mean/std,
+                                   acc_mean/std (position units), boundary_augment
     dataset.json                   provenance: spec, base scene, every trajectory's overrides,
-                                   seed, run directory, split, engine version; failures
+                                   seed, run directory, split, engine version; failures; the
+                                   neighbour count per frame range at the radius; a suggested
+                                   gns noise_std
     runs/                          the sweep: manifest.json, results.csv, one run per trajectory
 
 ``sequence_length`` is the number of frames of every trajectory, as geoelements/gns defines it
@@ -26,6 +28,15 @@ Statistics are those gns normalises with: per dimension, pooled over every parti
 *training* trajectory of the float32 positions, velocity v = x_t - x_{t-1} and acceleration
 a = x_{t+1} - 2 x_t + x_{t-1} in position units per frame (NOT divided by dt: gns never divides).
 Population standard deviations (ddof = 0).
+
+The connectivity radius (unless the spec gives one) is the radius at which a particle has
+``target_neighbours`` neighbours on average over a sample of the training frames that takes frames
+from every trajectory and spreads them over each one's whole length (:func:`sample_indices`): a
+bed that densifies in time is measured as gns will see it, over every training window.
+``unit_box = true`` writes positions x / L (bounds [0, 1]^2; statistics and radius follow), the
+scale of DeepMind's and gns' datasets, for which gns' defaults (noise_std 6.7e-4) were tuned;
+dataset.json's ``noise.suggested_noise_std`` is the noise that is the same fraction of this data's
+velocity std as 6.7e-4 of WaterDrop's (:func:`suggested_noise_std`), in the stored units.
 
 Spec file (TOML; paths relative to it)::
 
@@ -43,7 +54,8 @@ Spec file (TOML; paths relative to it)::
     seed = 0
     [gns]
     connectivity_radius = 4.0          # [a]; default: the radius with target_neighbours
-    target_neighbours = 15             # mean neighbours at the computed radius
+    target_neighbours = 15             # mean neighbours at the computed radius (training frames)
+    unit_box = false                   # true: positions in units of the box side, [0, 1]^2
     type_map = { 1 = 5 }               # engine type -> gns particle_type (default identity)
     boundary_augment = 1.0             # gns' clamp of the wall-distance features
 
@@ -85,8 +97,15 @@ METADATA_KEYS = ("bounds", "sequence_length", "default_connectivity_radius", "di
                  "vel_mean", "vel_std", "acc_mean", "acc_std")
 STAT_RTOL = 1e-9                     # recomputed statistics vs metadata.json (summation order)
 DT_RTOL = 1e-9                       # frame spacing: uniform within a trajectory and across
+SAMPLE_FRAMES = 1000                 # frames sampled for the radius (bench/RESULTS.md, 28)
+FRAME_RANGES = 5                     # frame ranges of the neighbour count in dataset.json
+GNS_NOISE_STD = 6.7e-4               # gns' default noise_std (config.yaml data.noise_std)
+WATERDROP_VEL_STD = (0.0013973410613251076, 0.00131291713199288)  # DeepMind WaterDrop metadata
+NOISE_OVER_VEL_STD = GNS_NOISE_STD / math.sqrt(
+    (WATERDROP_VEL_STD[0] ** 2 + WATERDROP_VEL_STD[1] ** 2) / 2)  # 0.494
 _SPEC_KEYS = {"description", "base", "out", "seeds", "grid", "set", "points", "split", "gns"}
-_GNS_KEYS = {"connectivity_radius", "target_neighbours", "type_map", "boundary_augment"}
+_GNS_KEYS = {"connectivity_radius", "target_neighbours", "type_map", "boundary_augment",
+             "unit_box"}
 
 
 class DatasetError(ValueError):
@@ -156,47 +175,120 @@ def statistics(trajectories: Iterable[NDArray[Any]]) -> dict[str, list[float]]:
 # --------------------------------------------------------------------------------------------------
 # Connectivity radius
 # --------------------------------------------------------------------------------------------------
-def _sample_frames(trajectories: Sequence[NDArray[Any]], max_frames: int) -> list[NDArray[Any]]:
-    """Up to ``max_frames`` frames spread evenly over the trajectories and their frames."""
-    per = max(1, max_frames // max(1, len(trajectories)))
-    out: list[NDArray[Any]] = []
-    for pos in trajectories[:max_frames]:
-        idx = np.unique(np.linspace(0, pos.shape[0] - 1, min(per, pos.shape[0])).round())
-        out.extend(np.asarray(pos[int(i)], dtype=np.float64) for i in idx)
+def sample_indices(frame_counts: Sequence[int], max_frames: int) -> list[tuple[int, int]]:
+    """(trajectory, frame) pairs of a stratified sample of about ``max_frames`` frames that
+    takes frames from EVERY trajectory and spreads them over each one's whole length:
+    k = ceil(max_frames / T) frames of each of the T trajectories, the i-th of trajectory t at
+    the fraction (i + (t + 1/2) / T) / k of its length, so that together the trajectories
+    cover the frame axis evenly (a density that changes in time is sampled as it is)."""
+    n_traj = len(frame_counts)
+    if n_traj == 0:
+        return []
+    k = max(1, math.ceil(max_frames / n_traj))
+    out: list[tuple[int, int]] = []
+    for t, n_frames in enumerate(frame_counts):
+        u = (np.arange(k) + (t + 0.5) / n_traj) / k
+        idx = np.unique(np.minimum((u * n_frames).astype(np.int64), n_frames - 1))
+        out.extend((t, int(i)) for i in idx)
     return out
+
+
+def sample_frames(trajectories: Sequence[NDArray[Any]],
+                  max_frames: int = SAMPLE_FRAMES) -> tuple[list[NDArray[np.float64]],
+                                                            list[int]]:
+    """The frames (each (N, dim), float64) of :func:`sample_indices` and their frame indices."""
+    idx = sample_indices([p.shape[0] for p in trajectories], max_frames)
+    return ([np.asarray(trajectories[t][f], dtype=np.float64) for t, f in idx],
+            [f for _, f in idx])
+
+
+def frame_neighbours(frame: NDArray[Any], radius: float) -> float:
+    """Mean number of other particles within ``radius`` of a particle (r < radius, as gns'
+    radius graph) in one frame (N, dim); a k-d tree, memory O(N x neighbours)."""
+    return 2.0 * _close_pairs(frame, radius, strict=True).size / len(frame)
+
+
+def _close_pairs(frame: NDArray[Any], radius: float, strict: bool = False) -> NDArray[np.float64]:
+    """Sorted distances of the particle pairs of a frame (N, dim) closer than ``radius``
+    (d <= radius; d < radius with ``strict``), each pair once."""
+    from scipy.spatial import cKDTree
+
+    f = np.asarray(frame, dtype=np.float64)
+    pairs = cKDTree(f).query_pairs(radius, output_type="ndarray")
+    d = np.sort(np.sqrt(((f[pairs[:, 0]] - f[pairs[:, 1]]) ** 2).sum(axis=1)))
+    return d[:np.searchsorted(d, radius, side="left")] if strict else d
 
 
 def mean_neighbours(frames: Sequence[NDArray[Any]], radius: float) -> float:
     """Mean number of other particles within ``radius`` [a] of a particle (r < radius, as gns'
     radius graph), averaged over the frames (each (N, dim))."""
-    from scipy.spatial.distance import pdist
+    return float(np.mean([frame_neighbours(f, radius) for f in frames]))
 
-    counts = [2.0 * np.count_nonzero(pdist(f) < radius) / f.shape[0] for f in frames]
-    return float(np.mean(counts))
+
+def neighbours_by_frame_range(frames: Sequence[NDArray[Any]], frame_index: Sequence[int],
+                              n_frames: int, radius: float,
+                              ranges: int = FRAME_RANGES) -> list[dict[str, Any]]:
+    """Mean neighbour count at ``radius`` in ``ranges`` equal ranges of the frame index
+    (0 .. n_frames - 1) of sampled frames: how the count drifts in time (a bed that
+    densifies has more neighbours late). Each {"frames": [first, last], "mean_neighbours",
+    "sampled_frames"}."""
+    edges = np.linspace(0, n_frames, ranges + 1).round().astype(int)
+    fi = np.asarray(frame_index)
+    counts = np.array([frame_neighbours(f, radius) for f in frames])
+    out = []
+    for a, b in zip(edges[:-1], edges[1:]):
+        sel = (fi >= a) & (fi < b)
+        out.append({"frames": [int(a), int(b) - 1], "sampled_frames": int(sel.sum()),
+                    "mean_neighbours": float(counts[sel].mean()) if sel.any() else None})
+    return out
 
 
 def connectivity_radius(trajectories: Sequence[NDArray[Any]], target: float,
-                        max_frames: int = 200) -> tuple[float, float]:
-    """The radius [a] at which a particle has ``target`` neighbours on average over sampled
-    frames of ``trajectories`` (the measured density, walls and clusters included), and the
-    mean neighbour count measured at it. SceneError if the particles are too few."""
-    from scipy.spatial.distance import pdist
-
-    frames = _sample_frames(trajectories, max_frames)
+                        max_frames: int = SAMPLE_FRAMES) -> tuple[float, float]:
+    """The radius (position units) at which a particle has ``target`` neighbours on average over
+    :func:`sample_frames` of ``trajectories`` (every trajectory, over its whole length: the
+    measured density, walls, clusters and its drift in time included), and the mean neighbour
+    count measured at it. SceneError if the particles are too few. Only the pairs closer than
+    an upper bound are kept (k-d tree; the bound starts at twice the radius of a uniform
+    density and doubles until it holds the target), so memory is O(frames x N x neighbours),
+    not O(frames x N^2)."""
+    frames, _ = sample_frames(trajectories, max_frames)
     n_min = min(f.shape[0] for f in frames)
     if target <= 0 or target >= n_min - 1:
         raise SceneError(f"[gns] target_neighbours = {target}: must lie in (0, {n_min - 1}) with "
                          f"{n_min} particles; give [gns] connectivity_radius instead")
-    dists = [(np.sort(pdist(f)), f.shape[0]) for f in frames]
+    span = max(float(np.ptp(f, axis=0).max()) for f in frames)
+    n_mean = float(np.mean([f.shape[0] for f in frames]))
+    hi = 2.0 * math.sqrt(target * span ** 2 / (math.pi * n_mean)) or 1.0   # 1: one point
+    while True:
+        dists = [(_close_pairs(f, hi), f.shape[0]) for f in frames]
 
-    def count(r: float) -> float:
-        return float(np.mean([2.0 * np.searchsorted(d, r, side="left") / n for d, n in dists]))
+        def count(r: float) -> float:
+            return float(np.mean([2.0 * np.searchsorted(d, r, side="left") / n
+                                  for d, n in dists]))
 
-    lo, hi = 0.0, float(max(d[-1] for d, _ in dists)) * (1 + 1e-12)
+        if count(hi) >= target or hi > 2.0 * span:     # then every pair is held
+            break
+        hi *= 2.0
+    lo = 0.0
     for _ in range(80):
         mid = 0.5 * (lo + hi)
         lo, hi = (mid, hi) if count(mid) < target else (lo, mid)
     return hi, count(hi)
+
+
+# --------------------------------------------------------------------------------------------------
+# Noise
+# --------------------------------------------------------------------------------------------------
+def suggested_noise_std(vel_std: Sequence[float]) -> float:
+    """A ``noise_std`` for gns' training (random-walk noise on the input velocities, std at the
+    last step, position units per frame) that is the same fraction of this dataset's velocity
+    scale as gns' default 6.7e-4 is of DeepMind's WaterDrop: NOISE_OVER_VEL_STD (0.494) x the
+    rms of ``vel_std`` over the dimensions, to 2 significant digits. gns normalises the input
+    velocities by sqrt(vel_std^2 + noise_std^2), so the noise then has the same weight in the
+    normalised features as on WaterDrop."""
+    rms = math.sqrt(float(np.mean(np.square(np.asarray(vel_std, dtype=float)))))
+    return float(f"{NOISE_OVER_VEL_STD * rms:.2g}")
 
 
 # --------------------------------------------------------------------------------------------------
@@ -258,6 +350,7 @@ class DatasetSpec:
     target_neighbours: float = 15.0
     type_map: dict[int, int] = field(default_factory=dict)
     boundary_augment: float = 1.0
+    unit_box: bool = False
     description: str = ""
     text: str = ""
 
@@ -309,6 +402,11 @@ class DatasetSpec:
             if not isinstance(b, (int, float)) or isinstance(b, bool) or not b > 0:
                 raise SceneError(f"{path}: [gns] boundary_augment = {b!r}: expected > 0")
             ds.boundary_augment = float(b)
+        if "unit_box" in g:
+            u = g["unit_box"]
+            if not isinstance(u, bool):
+                raise SceneError(f"{path}: [gns] unit_box = {u!r}: expected true or false")
+            ds.unit_box = u
         ds.type_map = _type_map(g.get("type_map", {}), str(path))
         return ds
 
@@ -517,16 +615,24 @@ def assemble(spec: DatasetSpec, results: pd.DataFrame | None = None) -> dict[str
                        f"nothing written", code=3)
     side, frames = common["l"].pop(), common["frames"].pop()
     dt = float(np.mean(sorted(common["dt"])))
+    scale = side if spec.unit_box else 1.0        # stored length unit [a]
+    if spec.unit_box:
+        data = {s: {k: (to_unit_box(p, side), t) for k, (p, t) in d.items()}
+                for s, d in data.items()}
     train = [p for p, _ in data["train"].values()]
+    sample, sample_idx = sample_frames(train)
     if spec.connectivity_radius is not None:
-        radius, source = spec.connectivity_radius, "spec"
-        measured = mean_neighbours(_sample_frames(train, 200), radius)
+        radius, source = spec.connectivity_radius / scale, "spec"
+        measured = mean_neighbours(sample, radius)
     else:
         radius, measured = connectivity_radius(train, spec.target_neighbours)
         source = f"computed: mean neighbours {spec.target_neighbours:g} in the training frames"
-    metadata = {"bounds": [[0.0, side], [0.0, side]], "sequence_length": frames,
+    stats = statistics(train)
+    metadata = {"bounds": [[0.0, side / scale], [0.0, side / scale]], "sequence_length": frames,
                 "default_connectivity_radius": radius, "dim": 2, "dt": dt,
-                **statistics(train), "boundary_augment": spec.boundary_augment}
+                **stats, "boundary_augment": spec.boundary_augment}
+    length = f"L = {side:g} a (the box side; positions x / L in [0, 1])" if spec.unit_box \
+        else "a (particle radius)"
     n_part = [e["particles"] for e in done]
     provenance = {
         "format": FORMAT, "kind": KIND,
@@ -537,14 +643,27 @@ def assemble(spec: DatasetSpec, results: pd.DataFrame | None = None) -> dict[str
         "fixed": spec.sweep.fixed, "grid": spec.sweep.grid, "points_spec": spec.sweep.point_specs,
         "seeds": spec.sweep.seeds,
         "engine_version": sorted(versions)[0] if len(versions) == 1 else sorted(versions),
-        "units": {"length": "a (particle radius)", "time": "T = sqrt(a/g)",
-                  "statistics": "a per frame (velocity), a per frame^2 (acceleration)"},
+        "units": {"length": length, "length_a": scale, "unit_box": spec.unit_box,
+                  "time": "T = sqrt(a/g)",
+                  "statistics": "length per frame (velocity), per frame^2 (acceleration)"},
         "split": {"fractions": spec.fractions, "seed": spec.split_seed,
                   "method": "numpy.random.default_rng(seed).permutation(points), cut "
                             "train | valid | test",
                   **{s: [e["index"] for e in by_split[s]] for s in SPLITS}},
-        "connectivity": {"radius": radius, "source": source,
-                         "mean_neighbours_at_radius": measured},
+        "connectivity": {"radius": radius, "radius_a": radius * scale, "source": source,
+                         "mean_neighbours_at_radius": measured,
+                         "sampled_frames": len(sample),
+                         "sample": "every training trajectory, frames spread over its whole "
+                                   "length (pyorch.gns.sample_indices)",
+                         "by_frame_range": neighbours_by_frame_range(sample, sample_idx, frames,
+                                                                     radius)},
+        "noise": {"suggested_noise_std": suggested_noise_std(stats["vel_std"]),
+                  "rule": f"{NOISE_OVER_VEL_STD:.3f} x rms(vel_std): gns' default "
+                          f"{GNS_NOISE_STD:g} over DeepMind WaterDrop's vel_std",
+                  "gns_default_noise_std": GNS_NOISE_STD,
+                  "gns_default_over_vel_std": GNS_NOISE_STD / math.sqrt(
+                      float(np.mean(np.square(stats["vel_std"])))),
+                  "use": "gns: data.noise_std=<suggested_noise_std> (examples/gns/)"},
         "type_map": {str(k): v for k, v in spec.type_map.items()},
         "counts": {"points": len(pts), "completed": len(done), "failed": len(failed),
                    **{s: len(by_split[s]) for s in SPLITS}, "frames": frames,
@@ -553,6 +672,12 @@ def assemble(spec: DatasetSpec, results: pd.DataFrame | None = None) -> dict[str
     }
     write_dataset(spec.out, data, metadata, provenance)
     return provenance
+
+
+def to_unit_box(positions: NDArray[Any], side: float) -> NDArray[np.float32]:
+    """Positions [a] in a box [0, side]^2 as float32 in units of the side (box [0, 1]^2): the
+    float64 quotient of the stored float32 values, rounded once to float32."""
+    return (np.asarray(positions, dtype=np.float64) / side).astype(np.float32)
 
 
 def _status(run_dir: Path) -> dict[str, Any]:
@@ -811,8 +936,10 @@ def cmd_dataset(args: argparse.Namespace) -> int:
           f"{c['valid']}, test {c['test']}; {ran} run now) in {wall:.1f} s (sweep "
           f"{prov['timing']['sweep_s']:.1f} s, assembly {prov['timing']['assemble_s']:.1f} s); "
           f"connectivity radius "
-          f"{prov['connectivity']['radius']:.4g} a "
-          f"({prov['connectivity']['mean_neighbours_at_radius']:.3g} neighbours)")
+          f"{prov['connectivity']['radius']:.4g} "
+          f"{'L' if prov['units']['unit_box'] else 'a'} "
+          f"({prov['connectivity']['mean_neighbours_at_radius']:.3g} neighbours), suggested "
+          f"noise_std {prov['noise']['suggested_noise_std']:.2g}")
     for f in prov["failed"]:
         print(f"  {f['name']}: {f['status']}: {f['message']}", file=sys.stderr)
     return 3 if prov["failed"] else 0

@@ -127,12 +127,183 @@ def test_connectivity_radius_gives_the_target_neighbours() -> None:
     trajs = [rng.uniform(0, side, size=(5, n, 2)) for _ in range(3)]
     r, measured = gns.connectivity_radius(trajs, 15.0)
     assert measured == pytest.approx(15.0, abs=0.05)
-    assert gns.mean_neighbours(gns._sample_frames(trajs, 200), r) == pytest.approx(measured)
+    assert gns.mean_neighbours(gns.sample_frames(trajs)[0], r) == pytest.approx(measured)
     # uniform density n/L^2: n pi r^2 neighbours, less near the walls
     r_bulk = math.sqrt(15.0 / (math.pi * n / side**2))
     assert r_bulk < r < 1.15 * r_bulk
     with pytest.raises(SceneError, match="target_neighbours"):
         gns.connectivity_radius([rng.uniform(0, 5, size=(3, 10, 2))], 15.0)
+
+
+def _brute_radius(frames, target: float) -> float:
+    """The smallest pair distance d* such that a radius just above it gives a mean count >=
+    target: every pair distance of every frame, weighted 2 / (N F), sorted and summed."""
+    from scipy.spatial.distance import pdist
+
+    d = np.concatenate([pdist(f) for f in frames])
+    w = np.concatenate([np.full(len(f) * (len(f) - 1) // 2, 2.0 / (len(f) * len(frames)))
+                        for f in frames])
+    order = np.argsort(d, kind="stable")
+    return float(d[order][np.searchsorted(np.cumsum(w[order]), target - 1e-12)])
+
+
+@pytest.mark.parametrize("n, target", [(150, 15.0), (20, 18.9)])
+def test_connectivity_radius_is_exact_against_every_pair(n: int, target: float) -> None:
+    """Against the full distance list of the sampled frames (what the k-d tree's bounded pair
+    list must reproduce): the radius lies just above the critical distance. 18.9 of 19
+    neighbours needs more than twice the uniform-density radius (the bound's doubling)."""
+    rng = np.random.default_rng(n)
+    trajs = [rng.uniform(0, 10, size=(4, n, 2)) for _ in range(3)]
+    r, at = gns.connectivity_radius(trajs, target)
+    d_star = _brute_radius(gns.sample_frames(trajs)[0], target)
+    assert d_star < r <= d_star * (1 + 1e-9) and at >= target
+    assert gns.mean_neighbours(gns.sample_frames(trajs)[0], d_star) < target
+
+
+def _densifying(n_traj: int, frames: int = 25, n: int = 40, side: float = 20.0,
+                squeeze: float = 0.3) -> list[np.ndarray]:
+    """Trajectories whose particles (uniform in the box at frame 0) are pressed towards the
+    corner (0, 0): x_f = x_0 (1 - squeeze (f / (frames - 1))^2), the density 1 / (1 - squeeze)^2
+    ~ 2x higher at the last frame than at the first (a bed that densifies in time), a constant
+    acceleration -2 squeeze x_0 / (frames - 1)^2 per frame^2."""
+    rng = np.random.default_rng(11)
+    s = 1.0 - squeeze * (np.arange(frames) / (frames - 1)) ** 2
+    return [(rng.uniform(0, side, size=(n, 2))[None] * s[:, None, None]).astype(np.float32)
+            for _ in range(n_traj)]
+
+
+def _all_frames_neighbours(trajs, radius: float) -> np.ndarray:
+    """Reference: the neighbour count (r < radius) of every frame of every trajectory, by
+    brute force over the full distance matrix: array (T, F)."""
+    out = np.zeros((len(trajs), trajs[0].shape[0]))
+    for t, p in enumerate(trajs):
+        q = p.astype(np.float64)
+        for f in range(q.shape[0]):
+            d = np.sqrt(((q[f][:, None, :] - q[f][None, :, :]) ** 2).sum(-1))
+            out[t, f] = ((d < radius).sum() - q.shape[1]) / q.shape[1]
+    return out
+
+
+def test_sample_spreads_over_every_trajectory_and_its_whole_length() -> None:
+    # 320 trajectories, a budget of 1000 frames (gns_train's case): every trajectory gives
+    # ceil(1000 / 320) = 4 frames, and together they cover the 301 frames evenly
+    idx = gns.sample_indices([301] * 320, 1000)
+    assert len(idx) == 1280
+    assert sorted({t for t, _ in idx}) == list(range(320))
+    frames = np.array([f for _, f in idx])
+    assert frames.min() <= 1 and frames.max() >= 299
+    hist = np.histogram(frames, bins=5, range=(0, 301))[0]
+    assert hist.max() - hist.min() <= 6
+    assert frames.mean() == pytest.approx(150.0, abs=1.0)
+    # few trajectories: all of every short one, evenly spread over long ones
+    assert gns.sample_indices([5, 5], 1000) == [(t, f) for t in range(2) for f in range(5)]
+    idx = gns.sample_indices([100] * 3, 30)
+    assert [f for t, f in idx if t == 0] == [int((i + 1 / 6) * 10) for i in range(10)]
+    assert gns.sample_indices([], 10) == []
+
+
+def test_the_radius_gives_the_target_over_every_training_frame() -> None:
+    """A bed that densifies in time, more trajectories than the sample budget: the count at the
+    radius, over every frame of every trajectory, is the target (+-10 %, measured: ~1 %), and
+    the per-range counts follow the density."""
+    trajs = _densifying(250)
+    r, at = gns.connectivity_radius(trajs, 8.0)
+    assert at == pytest.approx(8.0, abs=0.05)
+    ref = _all_frames_neighbours(trajs, r)
+    assert ref.mean() == pytest.approx(8.0, rel=0.10)
+    assert ref[:, 0].mean() < 0.85 * 8.0 and ref[:, -1].mean() > 1.4 * 8.0  # the drift is real
+
+
+def _trajectory_runs(spec: gns.DatasetSpec, trajs: list[np.ndarray], side: float = 20.0,
+                     dt_frame: float = 0.1) -> None:
+    """Completed run directories holding only what assemble reads: run.json and the worker's
+    gns_trajectory.npz (positions as given, type 1, evenly spaced frames)."""
+    for p, pos in zip(spec.points().itertuples(), trajs):
+        run = Path(p.dir)
+        run.mkdir(parents=True, exist_ok=True)
+        (run / "run.json").write_text(json.dumps({"status": "completed", "version": "synth"}))
+        np.savez(run / gns.TRAJECTORY_FILE, positions=pos.astype(np.float32),
+                 types=np.ones(pos.shape[1], dtype=np.int64),
+                 t=np.arange(pos.shape[0]) * dt_frame, steps=np.arange(pos.shape[0]) * 100,
+                 box_l=np.float64(side))
+
+
+@pytest.fixture(scope="module")
+def densified(tmp_path_factory) -> tuple[gns.DatasetSpec, list[np.ndarray]]:
+    """300 densifying trajectories (240 train: more than the old 200-frame budget) as run
+    directories of a stub spec asking for 8 neighbours."""
+    tmp = tmp_path_factory.mktemp("densified")
+    spec = _stub_spec(tmp, 300, fractions={"train": 0.8, "valid": 0.1, "test": 0.1},
+                      target_neighbours=8.0)
+    trajs = _densifying(300)
+    _trajectory_runs(spec, trajs)
+    return spec, trajs
+
+
+def test_the_dataset_radius_gives_the_target_over_all_its_training_frames(densified) -> None:
+    """The written dataset: at metadata's default_connectivity_radius, a particle has the target
+    number of neighbours (+-10 %) on average over EVERY frame of every trajectory of train.npz;
+    dataset.json's counts per frame range agree with the brute-force ones of all frames."""
+    spec, _ = densified
+    prov = gns.assemble(spec)
+    ds = gns.load(spec.out)
+    train = ds.trajectories("train")
+    assert len(train) == 240
+    r = ds.metadata["default_connectivity_radius"]
+    ref = _all_frames_neighbours(train, r)
+    assert ref.mean() == pytest.approx(8.0, rel=0.10)
+    con = prov["connectivity"]
+    assert con["radius"] == r and con["sampled_frames"] == 240 * 5
+    ranges = con["by_frame_range"]
+    assert [x["frames"] for x in ranges] == [[0, 4], [5, 9], [10, 14], [15, 19], [20, 24]]
+    for x in ranges:
+        a, b = x["frames"]
+        assert x["sampled_frames"] == 240
+        assert x["mean_neighbours"] == pytest.approx(ref[:, a:b + 1].mean(), rel=0.10)
+    counts = [x["mean_neighbours"] for x in ranges]
+    assert counts == sorted(counts) and counts[-1] > 1.5 * counts[0]
+
+
+def test_unit_box_scales_positions_statistics_and_radius(densified, tmp_path: Path) -> None:
+    spec, _ = densified
+    gns.assemble(spec)
+    a_units = gns.load(spec.out)
+    a_prov = json.loads((spec.out / "dataset.json").read_text())
+    unit = _stub_spec(tmp_path, 300, fractions=spec.fractions, target_neighbours=8.0,
+                      unit_box=True)
+    unit.sweep = spec.sweep                                 # the same run directories
+    prov = gns.assemble(unit)
+    ds = gns.load(unit.out)                                 # validates: inside [0, 1]^2
+    md, side = ds.metadata, 20.0
+    assert md["bounds"] == [[0.0, 1.0], [0.0, 1.0]]
+    for s in gns.SPLITS:
+        for key, (pos, types) in ds.splits[s].items():
+            ref = (a_units.splits[s][key][0].astype(np.float64) / side).astype(np.float32)
+            assert pos.dtype == np.float32 and pos.tobytes() == ref.tobytes()
+    for k in ("vel_mean", "vel_std", "acc_mean", "acc_std"):
+        np.testing.assert_allclose(md[k], np.asarray(a_units.metadata[k]) / side, rtol=1e-5)
+    assert md["default_connectivity_radius"] == pytest.approx(
+        a_units.metadata["default_connectivity_radius"] / side, rel=1e-6)
+    assert prov["connectivity"]["radius_a"] == pytest.approx(
+        a_units.metadata["default_connectivity_radius"], rel=1e-6)
+    assert [x["mean_neighbours"] for x in prov["connectivity"]["by_frame_range"]] == \
+        pytest.approx([x["mean_neighbours"] for x in a_prov["connectivity"]["by_frame_range"]])
+    assert prov["units"]["unit_box"] is True and prov["units"]["length_a"] == side
+    assert prov["noise"]["suggested_noise_std"] == pytest.approx(
+        a_prov["noise"]["suggested_noise_std"] / side, rel=0.06)   # 2 significant digits
+    # a radius given in the spec is in a, written in box units
+    unit.connectivity_radius = 5.0
+    assert gns.assemble(unit)["connectivity"]["radius"] == 0.25
+
+
+def test_suggested_noise_is_gns_default_on_waterdrop() -> None:
+    """The rule reproduces gns' default on the dataset it was tuned for, and scales with the
+    velocities; gns_train's velocities (a per frame) give 0.04, 60x gns' default."""
+    assert gns.suggested_noise_std(gns.WATERDROP_VEL_STD) == 6.7e-4
+    assert gns.NOISE_OVER_VEL_STD == pytest.approx(0.494, abs=5e-4)
+    assert gns.suggested_noise_std([0.0866049, 0.0762286]) == 0.04
+    assert gns.suggested_noise_std([0.0866049 / 40, 0.0762286 / 40]) == 0.001
+    assert gns.suggested_noise_std([3.0, 4.0]) == float(f"{0.4941781 * math.sqrt(12.5):.2g}")
 
 
 # ----------------------------------------------------------------------------- split
@@ -457,6 +628,7 @@ def test_a_failed_trajectory_is_isolated(client, tmp_path: Path) -> None:
     ({"train = 0.6": "train = 0.7"}, "must add up to 1"),
     ({"seeds = 5": "seeds = 0"}, "seeds = 0"),
     ({"[split]": "[splits]"}, "unknown keys"),
+    ({"target_neighbours = 10": "unit_box = 1"}, r"\[gns\] unit_box = 1: expected true or false"),
 ])
 def test_bad_specs_are_refused_before_anything_runs(tmp_path: Path, replace, message) -> None:
     path = _spec_file(tmp_path, **replace)
@@ -488,6 +660,9 @@ def test_example_specs_check() -> None:
     for path in sorted((ROOT / "runs" / "datasets").glob("*.toml")):
         common = gns.DatasetSpec.from_toml(path).check()
         assert common["frames"] >= gns.MIN_FRAMES
+    # the training set is written in box units (gns' scale), the quick one in a
+    assert gns.DatasetSpec.from_toml(ROOT / "runs" / "datasets" / "gns_train.toml").unit_box
+    assert not gns.DatasetSpec.from_toml(QUICK).unit_box
 
 
 def test_statistics_of_a_uniform_field_are_per_frame(client, tmp_path: Path) -> None:
