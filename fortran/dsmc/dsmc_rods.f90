@@ -15,13 +15,13 @@
 !> samples are the same bits for any thread count.
 module dsmc_rods
   use kinds, only: dp, i8, pi
-  use errors, only: status_t, set_error, exit_bad_input, exit_io, exit_numerical, msg_len
+  use errors, only: status_t, set_error, exit_bad_input, exit_io, exit_numerical
   use method, only: method_t, fname_len, max_out_files, add_output
   use tables, only: table_t, table_open, table_line, table_flush, table_close, rfmt
   use ckpt, only: ckpt_writer_t, ckpt_put
   use, intrinsic :: iso_fortran_env, only: int8
-  use scene_input, only: open_scene, group_status, kind_len, check_real, check_int, check_choice, put_real, put_int, &
-       put_str, put_logical, int_str, real_str
+  use scene_input, only: kind_len, int_str, real_str
+  use schema, only: schema_t, max_steps_all
   use dsmc_collisions, only: collision_t, pair_count, draw_pairs, rod_geometry, point_geometry, &
        collide, pair_energy, energy_change
   use dsmc_mean_field, only: field_t, transport, interaction_energy
@@ -33,7 +33,6 @@ module dsmc_rods
   public :: rods_t
 
   integer, parameter :: nlen = 16
-  integer(i8), parameter :: max_steps = 4000000000000000000_i8
   real(dp), parameter :: runaway_bound = 1.0e100_dp   !< guard on sum |state| (see advance)
 
   type, extends(method_t) :: rods_t
@@ -63,7 +62,7 @@ module dsmc_rods
     integer(i8) :: bins = 50, entropy_bins = 16
     real(dp) :: v_max = 4.0_dp, omega_max = 4.0_dp
     logical :: collision_audit = .false.
-    integer(i8) :: fourier_modes = 16, onsager_bins = 512   !< as read (validated in load)
+    integer(i8) :: fourier_modes = 16, onsager_bins = 512   !< as read (into field in load)
     ! state
     type(collision_t) :: law
     real(dp), allocatable :: v(:, :), theta(:), omega(:), u(:), de(:)
@@ -73,21 +72,107 @@ module dsmc_rods
     real(dp) :: audit_de = 0.0_dp, audit_dp = 0.0_dp
     type(table_t) :: hist, histo, samp
   contains
-    procedure :: load, read => read_file, scene_text, open_outputs, advance, finish, close_outputs
+    procedure :: load, keys, open_outputs, advance, finish, close_outputs
     procedure :: output_files
     procedure :: save_state, restore_state, counters, progress_text, json_fields
   end type rods_t
 
 contains
 
-  !> Read (read_file), validate, resolve and build the initial state.
+  !> The scene of this kind, declared once (module schema): reading,
+  !> validation, scene.nml and `partsim --describe rods` come from it.
+  subroutine keys(self, s)
+    class(rods_t), intent(inout), target :: self
+    type(schema_t), intent(inout) :: s
+    call s%init('rods', 'kind rods (space-homogeneous DSMC). Units: mass m, length L, '// &
+         'time t0; energies m L^2/t0^2.')
+    call s%group('scene', 'what this scene is', required=.true.)
+    call s%key('kind', self%kind, '', 'the method and system of this scene', choices='rods')
+    call s%key('title', self%title, '', 'free text (UTF-8)')
+    call s%group('rods', 'the samples, their initial law and the step')
+    call s%key('n', self%n, '', 'samples (rods)', lo=2_i8, hi=200000000_i8)
+    call s%key('m', self%m, 'm', 'mass of a rod', lo=0.0_dp, lo_open=.true., hi=1.0e6_dp)
+    call s%key('length', self%length, 'L', 'length of a rod', lo=0.0_dp, lo_open=.true., &
+         hi=1.0e6_dp)
+    call s%key('inertia_model', self%inertia_model, '', 'given: inertia as written; '// &
+         'thin_rod: inertia = m length^2/12 (resolved)', choices='given|thin_rod')
+    call s%key('inertia', self%inertia, 'm L^2', 'moment of inertia (resolved)', lo=0.0_dp, &
+         lo_open=.true., hi=1.0e12_dp)
+    call s%key('v_init', self%v_init, '', 'initial velocities: two bumps at (+-v_shift, 0), '// &
+         'a Maxwellian around (v_shift, 0), or BKW', choices='two_bumps|maxwellian|bkw')
+    call s%key('v_shift', self%v_shift, 'L/t0', 'centre of the velocity bumps', &
+         lo=-1.0e6_dp, hi=1.0e6_dp)
+    call s%key('v_spread', self%v_spread, 'L/t0', 'spread of each velocity component', &
+         lo=0.0_dp, hi=1.0e6_dp)
+    call s%key('theta_init', self%theta_init, '', 'initial angles: uniform or gaussian '// &
+         '(theta0, theta_spread)', choices='uniform|gaussian')
+    call s%key('theta0', self%theta0, 'rad', 'mean angle (gaussian)', lo=-1.0e3_dp, hi=1.0e3_dp)
+    call s%key('theta_spread', self%theta_spread, 'rad', 'angle spread (gaussian)', lo=0.0_dp, &
+         hi=1.0e3_dp)
+    call s%key('omega0', self%omega0, 'rad/t0', 'mean angular velocity', lo=-1.0e6_dp, &
+         hi=1.0e6_dp)
+    call s%key('omega_spread', self%omega_spread, 'rad/t0', 'angular velocity spread', &
+         lo=0.0_dp, hi=1.0e6_dp)
+    call s%key('seed', self%seed, '', 'RNG seed', lo=1_i8, hi=2147483647_i8)
+    call s%key('dt', self%dt, 't0', 'step (<= t_end, <= tau with collisions, at most 1e12 '// &
+         'steps)', lo=0.0_dp, lo_open=.true., hi=1.0e9_dp)
+    call s%key('t_end', self%t_end, 't0', 'run length', lo=0.0_dp, lo_open=.true., hi=1.0e9_dp)
+    call s%group('collisions', 'Nanbu-Babovsky collisions by the rod law')
+    call s%key('enabled', self%collisions, '', 'collisions on')
+    call s%key('tau', self%tau, 't0', 'mean time between collisions of a sample', lo=0.0_dp, &
+         lo_open=.true., hi=1.0e12_dp)
+    call s%key('e_v', self%e_v, '1', 'translational restitution', lo=0.0_dp, hi=1.0_dp)
+    call s%key('e_w', self%e_w, '1', 'rotational restitution', lo=0.0_dp, hi=1.0_dp)
+    call s%key('rotation', self%rotation, '', '.false.: point particles (omega = 0)')
+    call s%group('mean_field', 'the potential of the transport step')
+    call s%key('potential', self%field%potential, '', 'none, quadratic well, dipole or '// &
+         'Onsager''s |sin| mean field', choices='none|quadratic|dipole|onsager')
+    call s%key('alpha', self%field%alpha, 'm L^2/t0^2', 'strength (onsager: times L^2)', &
+         lo=0.0_dp, hi=1.0e6_dp)
+    call s%key('beta', self%field%beta, '1/t0', 'damping of quadratic', lo=0.0_dp, hi=1.0e6_dp)
+    call s%key('theta_hat', self%field%theta_hat, 'rad', 'alignment direction', lo=-1.0e3_dp, &
+         hi=1.0e3_dp)
+    call s%key('onsager_force', self%field%force, '', 'Onsager force: exact (O(N^2), '// &
+         'n <= 1e5), fourier or histogram', choices='exact|fourier|histogram')
+    call s%key('fourier_modes', self%fourier_modes, '', 'Fourier modes K (fourier)', lo=1_i8, &
+         hi=1000_i8)
+    call s%key('onsager_bins', self%onsager_bins, '', 'grid points of the histogram form', &
+         lo=8_i8, hi=8192_i8)
+    call s%group('output', 'cadences in steps (0 = off)')
+    call s%key('history_every', self%history_every, 'steps', 'history.dat rows (0 = off)', &
+         lo=0_i8, hi=max_steps_all)
+    call s%key('histogram_every', self%histogram_every, 'steps', 'histograms.dat (0 = off)', &
+         lo=0_i8, hi=max_steps_all)
+    call s%key('samples_every', self%samples_every, 'steps', 'samples.dat (0 = off)', lo=0_i8, &
+         hi=max_steps_all)
+    call s%key('checkpoint_every', self%checkpoint_every, 'steps', 'checkpoints (0 = none)', &
+         lo=0_i8, hi=max_steps_all)
+    call s%key('progress_every', self%progress_every, 'steps', 'progress lines (0 = about '// &
+         '200 per run)', lo=0_i8, hi=max_steps_all)
+    call s%key('bins', self%bins, '', 'bins of the histograms', lo=2_i8, hi=100000_i8)
+    call s%key('entropy_bins', self%entropy_bins, '', 'bins per axis of (vx, vy, omega) for H', &
+         lo=2_i8, hi=128_i8)
+    call s%key('v_max', self%v_max, 'L/t0', 'histogram range of the velocity components', &
+         lo=0.0_dp, lo_open=.true., hi=1.0e6_dp)
+    call s%key('omega_max', self%omega_max, 'rad/t0', 'histogram range of omega', lo=0.0_dp, &
+         lo_open=.true., hi=1.0e6_dp)
+    call s%key('collision_audit', self%collision_audit, '', 'per pair: energy and momentum '// &
+         'balance against the formula (history.dat audit_dE, audit_dp)')
+  end subroutine keys
+
+  !> Read, resolve (thin_rod inertia), validate and build the initial state.
   subroutine load(self, path, st)
     class(rods_t), intent(inout), target :: self
     character(len=*), intent(in) :: path
     type(status_t), intent(inout) :: st
-    call self%read(path, st)
+    type(schema_t) :: s
+    call self%keys(s)
+    call s%read(path, st)
     if (st%code /= 0) return
-    call validate(self, path, self%fourier_modes, self%onsager_bins, st)
+    if (trim(self%inertia_model) == 'thin_rod') self%inertia = self%m*self%length**2/12.0_dp
+    call s%validate(path, st)
+    if (st%code /= 0) return
+    call validate(self, path, st)
     if (st%code /= 0) return
     self%field%modes = int(self%fourier_modes)
     self%field%bins = int(self%onsager_bins)
@@ -100,137 +185,26 @@ contains
     call initial_state(self)
   end subroutine load
 
-  !> The scene file's groups (no range checks); I = m L^2/12 resolved for 'thin_rod'.
-  subroutine read_file(self, path, st)
-    class(rods_t), intent(inout), target :: self
-    character(len=*), intent(in) :: path
-    type(status_t), intent(inout) :: st
-    character(len=kind_len) :: kind
-    character(len=128) :: title
-    integer(i8) :: n, seed, history_every, histogram_every, samples_every, checkpoint_every, &
-         bins, entropy_bins, progress_every, fourier_modes, onsager_bins
-    real(dp) :: m, length, inertia, v_shift, v_spread, theta0, theta_spread, omega0, &
-         omega_spread, dt, t_end, tau, e_v, e_w, alpha, beta, theta_hat, v_max, omega_max
-    character(len=nlen) :: inertia_model, v_init, theta_init, potential, onsager_force
-    logical :: enabled, rotation, collision_audit
-    integer :: u, ios
-    character(len=msg_len) :: iom
-    namelist /scene/ kind, title
-    namelist /rods/ n, m, length, inertia, inertia_model, v_init, v_shift, v_spread, &
-         theta_init, theta0, theta_spread, omega0, omega_spread, seed, dt, t_end
-    namelist /collisions/ enabled, tau, e_v, e_w, rotation
-    namelist /mean_field/ potential, alpha, beta, theta_hat, onsager_force, fourier_modes, &
-         onsager_bins
-    namelist /output/ history_every, histogram_every, samples_every, checkpoint_every, bins, &
-         entropy_bins, v_max, omega_max, collision_audit, progress_every
-    kind = self%kind; title = self%title
-    n = self%n; m = self%m; length = self%length; inertia = self%inertia
-    inertia_model = self%inertia_model; v_init = self%v_init; v_shift = self%v_shift
-    v_spread = self%v_spread; theta_init = self%theta_init; theta0 = self%theta0
-    theta_spread = self%theta_spread; omega0 = self%omega0; omega_spread = self%omega_spread
-    seed = self%seed; dt = self%dt; t_end = self%t_end
-    enabled = self%collisions; tau = self%tau; e_v = self%e_v; e_w = self%e_w
-    rotation = self%rotation
-    potential = self%field%potential; alpha = self%field%alpha; beta = self%field%beta
-    theta_hat = self%field%theta_hat; onsager_force = self%field%force
-    fourier_modes = self%fourier_modes
-    onsager_bins = self%onsager_bins
-    history_every = self%history_every; histogram_every = self%histogram_every
-    samples_every = self%samples_every; checkpoint_every = self%checkpoint_every
-    bins = self%bins; entropy_bins = self%entropy_bins; v_max = self%v_max
-    omega_max = self%omega_max; collision_audit = self%collision_audit
-    progress_every = self%progress_every
-    call open_scene(path, u, st)
-    if (st%code /= 0) return
-    read(u, nml=scene, iostat=ios, iomsg=iom)
-    call group_status(path, 'scene', ios, iom, .true., st)
-    rewind(u); read(u, nml=rods, iostat=ios, iomsg=iom)
-    call group_status(path, 'rods', ios, iom, .false., st)
-    rewind(u); read(u, nml=collisions, iostat=ios, iomsg=iom)
-    call group_status(path, 'collisions', ios, iom, .false., st)
-    rewind(u); read(u, nml=mean_field, iostat=ios, iomsg=iom)
-    call group_status(path, 'mean_field', ios, iom, .false., st)
-    rewind(u); read(u, nml=output, iostat=ios, iomsg=iom)
-    call group_status(path, 'output', ios, iom, .false., st)
-    close(u)
-    if (st%code /= 0) return
-    self%kind = kind; self%title = title
-    self%n = n; self%m = m; self%length = length; self%inertia = inertia
-    self%inertia_model = inertia_model; self%v_init = v_init; self%v_shift = v_shift
-    self%v_spread = v_spread; self%theta_init = theta_init; self%theta0 = theta0
-    self%theta_spread = theta_spread; self%omega0 = omega0; self%omega_spread = omega_spread
-    self%seed = seed; self%dt = dt; self%t_end = t_end
-    self%collisions = enabled; self%tau = tau; self%e_v = e_v; self%e_w = e_w
-    self%rotation = rotation
-    self%field%potential = potential; self%field%alpha = alpha; self%field%beta = beta
-    self%field%theta_hat = theta_hat; self%field%force = onsager_force
-    self%history_every = history_every; self%histogram_every = histogram_every
-    self%samples_every = samples_every; self%checkpoint_every = checkpoint_every
-    self%bins = bins; self%entropy_bins = entropy_bins; self%v_max = v_max
-    self%omega_max = omega_max; self%collision_audit = collision_audit
-    self%progress_every = progress_every
-    self%fourier_modes = fourier_modes
-    self%onsager_bins = onsager_bins
-    if (trim(self%inertia_model) == 'thin_rod') self%inertia = self%m*self%length**2/12.0_dp
-  end subroutine read_file
-
-  subroutine validate(self, path, fourier_modes, onsager_bins, st)
+  !> Rules across keys (each key's own range is the declaration's, checked before).
+  subroutine validate(self, path, st)
     class(rods_t), intent(in) :: self
     character(len=*), intent(in) :: path
-    integer(i8), intent(in) :: fourier_modes, onsager_bins
     type(status_t), intent(inout) :: st
-    call check_choice(path, 'scene', 'kind', self%kind, ['rods'], st)
-    call check_int(path, 'rods', 'n', self%n, 2_i8, 200000000_i8, st)
-    call check_real(path, 'rods', 'm', self%m, 0.0_dp, 1.0e6_dp, .false., st)
-    call check_real(path, 'rods', 'length', self%length, 0.0_dp, 1.0e6_dp, .false., st)
-    call check_choice(path, 'rods', 'inertia_model', self%inertia_model, &
-         [character(len=nlen) :: 'given', 'thin_rod'], st)
-    call check_real(path, 'rods', 'inertia', self%inertia, 0.0_dp, 1.0e12_dp, .false., st)
-    call check_choice(path, 'rods', 'v_init', self%v_init, &
-         [character(len=nlen) :: 'two_bumps', 'maxwellian', 'bkw'], st)
-    call check_real(path, 'rods', 'v_shift', self%v_shift, -1.0e6_dp, 1.0e6_dp, .true., st)
-    call check_real(path, 'rods', 'v_spread', self%v_spread, 0.0_dp, 1.0e6_dp, .true., st)
-    call check_choice(path, 'rods', 'theta_init', self%theta_init, &
-         [character(len=nlen) :: 'uniform', 'gaussian'], st)
-    call check_real(path, 'rods', 'theta0', self%theta0, -1.0e3_dp, 1.0e3_dp, .true., st)
-    call check_real(path, 'rods', 'theta_spread', self%theta_spread, 0.0_dp, 1.0e3_dp, .true., st)
-    call check_real(path, 'rods', 'omega0', self%omega0, -1.0e6_dp, 1.0e6_dp, .true., st)
-    call check_real(path, 'rods', 'omega_spread', self%omega_spread, 0.0_dp, 1.0e6_dp, .true., st)
-    call check_int(path, 'rods', 'seed', self%seed, 1_i8, 2147483647_i8, st)
-    call check_real(path, 'rods', 't_end', self%t_end, 0.0_dp, 1.0e9_dp, .false., st)
-    call check_real(path, 'collisions', 'tau', self%tau, 0.0_dp, 1.0e12_dp, .false., st)
-    call check_real(path, 'collisions', 'e_v', self%e_v, 0.0_dp, 1.0_dp, .true., st)
-    call check_real(path, 'collisions', 'e_w', self%e_w, 0.0_dp, 1.0_dp, .true., st)
-    if (st%code /= 0) return
-    call check_real(path, 'rods', 'dt', self%dt, 0.0_dp, self%t_end, .false., st)
-    if (st%code /= 0) return
-    if (self%collisions .and. self%dt > self%tau) call set_error(st, exit_bad_input, &
-         trim(path)//': &rods dt = '//real_str(self%dt)//': allowed (0, &collisions tau = '// &
-         real_str(self%tau)//'] (Nanbu-Babovsky draws floor(N dt/(2 tau)) disjoint pairs '// &
-         'per step, at most N/2: dt <= tau)')
-    if (self%t_end/self%dt > real(max_steps, dp)) call set_error(st, exit_bad_input, &
-         trim(path)//': &rods t_end/dt: more than 4e18 steps')
-    call check_choice(path, 'mean_field', 'potential', self%field%potential, &
-         [character(len=nlen) :: 'none', 'quadratic', 'dipole', 'onsager'], st)
-    call check_real(path, 'mean_field', 'alpha', self%field%alpha, 0.0_dp, 1.0e6_dp, .true., st)
-    call check_real(path, 'mean_field', 'beta', self%field%beta, 0.0_dp, 1.0e6_dp, .true., st)
-    call check_real(path, 'mean_field', 'theta_hat', self%field%theta_hat, -1.0e3_dp, 1.0e3_dp, &
-         .true., st)
-    call check_choice(path, 'mean_field', 'onsager_force', self%field%force, &
-         [character(len=nlen) :: 'exact', 'fourier', 'histogram'], st)
-    call check_int(path, 'mean_field', 'fourier_modes', fourier_modes, 1_i8, 1000_i8, st)
-    call check_int(path, 'mean_field', 'onsager_bins', onsager_bins, 8_i8, 8192_i8, st)
-    if (trim(self%field%potential) == 'onsager' .and. trim(self%field%force) == 'exact') &
-         call check_int(path, 'rods', 'n', self%n, 2_i8, 100000_i8, st)   ! O(N^2) per step
-    call check_int(path, 'output', 'history_every', self%history_every, 0_i8, max_steps, st)
-    call check_int(path, 'output', 'histogram_every', self%histogram_every, 0_i8, max_steps, st)
-    call check_int(path, 'output', 'samples_every', self%samples_every, 0_i8, max_steps, st)
-    call check_int(path, 'output', 'checkpoint_every', self%checkpoint_every, 0_i8, max_steps, st)
-    call check_int(path, 'output', 'progress_every', self%progress_every, 0_i8, max_steps, st)
-    call check_int(path, 'output', 'bins', self%bins, 2_i8, 100000_i8, st)
-    call check_int(path, 'output', 'entropy_bins', self%entropy_bins, 2_i8, 128_i8, st)
-    call check_real(path, 'output', 'v_max', self%v_max, 0.0_dp, 1.0e6_dp, .false., st)
-    call check_real(path, 'output', 'omega_max', self%omega_max, 0.0_dp, 1.0e6_dp, .false., st)
+    if (self%dt > self%t_end .or. self%t_end/self%dt > real(max_steps_all, dp)) then
+      call set_error(st, exit_bad_input, trim(path)//': &rods dt = '//real_str(self%dt)// &
+           ': allowed [t_end/'//int_str(max_steps_all)//', t_end] = ['// &
+           real_str(self%t_end/real(max_steps_all, dp))//', '//real_str(self%t_end)// &
+           '] t0 (at most '//int_str(max_steps_all)//' steps)')
+    else if (self%collisions .and. self%dt > self%tau) then
+      call set_error(st, exit_bad_input, trim(path)//': &rods dt = '//real_str(self%dt)// &
+           ': allowed (0, &collisions tau = '//real_str(self%tau)//'] (Nanbu-Babovsky draws '// &
+           'floor(N dt/(2 tau)) disjoint pairs per step, at most N/2: dt <= tau)')
+    else if (trim(self%field%potential) == 'onsager' .and. trim(self%field%force) == 'exact' &
+         .and. self%n > 100000_i8) then
+      call set_error(st, exit_bad_input, trim(path)//': &rods n = '//int_str(self%n)// &
+           ': allowed integers in [2, 100000] with &mean_field onsager_force = ''exact'' '// &
+           '(O(N^2) per step; ''fourier'' or ''histogram'' for more samples)')
+    end if
   end subroutine validate
 
   !> N(0,1) variates by Box-Muller from the intrinsic generator.
@@ -295,59 +269,6 @@ contains
     self%n_collisions = 0
     self%e_lost = 0.0_dp
   end subroutine initial_state
-
-  function scene_text(self) result(text)
-    class(rods_t), intent(inout), target :: self
-    character(len=:), allocatable :: text
-    character(len=1), parameter :: nl = achar(10)
-    text = '! resolved scene: kind rods (space-homogeneous DSMC). Units: mass m, length L, '// &
-         'time t0; energies m L^2/t0^2.'//nl//'&scene'//nl
-    call put_str(text, 'kind', self%kind, '')
-    call put_str(text, 'title', self%title, '')
-    text = text//'/'//nl//'&rods'//nl
-    call put_int(text, 'n', self%n, 'samples')
-    call put_real(text, 'm', self%m, 'm')
-    call put_real(text, 'length', self%length, 'L')
-    call put_str(text, 'inertia_model', self%inertia_model, 'given | thin_rod (m L^2/12)')
-    call put_real(text, 'inertia', self%inertia, 'm L^2 (resolved)')
-    call put_str(text, 'v_init', self%v_init, 'two_bumps | maxwellian | bkw')
-    call put_real(text, 'v_shift', self%v_shift, 'L/t0')
-    call put_real(text, 'v_spread', self%v_spread, 'L/t0')
-    call put_str(text, 'theta_init', self%theta_init, 'uniform | gaussian')
-    call put_real(text, 'theta0', self%theta0, 'rad')
-    call put_real(text, 'theta_spread', self%theta_spread, 'rad')
-    call put_real(text, 'omega0', self%omega0, 'rad/t0')
-    call put_real(text, 'omega_spread', self%omega_spread, 'rad/t0')
-    call put_int(text, 'seed', self%seed, '')
-    call put_real(text, 'dt', self%dt, 't0')
-    call put_real(text, 't_end', self%t_end, 't0')
-    text = text//'/'//nl//'&collisions'//nl
-    call put_logical(text, 'enabled', self%collisions, '')
-    call put_real(text, 'tau', self%tau, 't0 (mean time between collisions)')
-    call put_real(text, 'e_v', self%e_v, 'translational restitution')
-    call put_real(text, 'e_w', self%e_w, 'rotational restitution')
-    call put_logical(text, 'rotation', self%rotation, '.false. = point particles')
-    text = text//'/'//nl//'&mean_field'//nl
-    call put_str(text, 'potential', self%field%potential, 'none | quadratic | dipole | onsager')
-    call put_real(text, 'alpha', self%field%alpha, 'm L^2/t0^2 (onsager: times L^2)')
-    call put_real(text, 'beta', self%field%beta, '1/t0')
-    call put_real(text, 'theta_hat', self%field%theta_hat, 'rad')
-    call put_str(text, 'onsager_force', self%field%force, 'exact | fourier | histogram')
-    call put_int(text, 'fourier_modes', self%fourier_modes, '')
-    call put_int(text, 'onsager_bins', self%onsager_bins, 'grid points of the histogram form')
-    text = text//'/'//nl//'&output'//nl
-    call put_int(text, 'history_every', self%history_every, 'steps (0 = off)')
-    call put_int(text, 'histogram_every', self%histogram_every, 'steps (0 = off)')
-    call put_int(text, 'samples_every', self%samples_every, 'steps (0 = off)')
-    call put_int(text, 'checkpoint_every', self%checkpoint_every, 'steps (0 = none)')
-    call put_int(text, 'progress_every', self%progress_every, 'steps (0 = about 200 lines)')
-    call put_int(text, 'bins', self%bins, '')
-    call put_int(text, 'entropy_bins', self%entropy_bins, 'per axis of (vx, vy, omega)')
-    call put_real(text, 'v_max', self%v_max, 'L/t0')
-    call put_real(text, 'omega_max', self%omega_max, 'rad/t0')
-    call put_logical(text, 'collision_audit', self%collision_audit, '')
-    text = text//'/'//nl
-  end function scene_text
 
   subroutine open_outputs(self, dir, append, st)
     class(rods_t), intent(inout) :: self

@@ -12,15 +12,15 @@
 !> with positions interpolated exactly between events, history, aggregate).
 module edmd_dla
   use kinds, only: dp, i8, pi
-  use errors, only: status_t, set_error, exit_bad_input, exit_io, msg_len
+  use errors, only: status_t, set_error, exit_bad_input, exit_io
   use method, only: method_t, fname_len, max_out_files, add_output
   use tables, only: table_t, table_open, table_line, table_flush, table_close, rfmt
   use frames, only: frames_t, frames_open, frames_begin, frames_put, frames_end, frames_flush, &
        frames_close, json_real
   use ckpt, only: ckpt_writer_t, ckpt_put
   use, intrinsic :: iso_fortran_env, only: int8
-  use scene_input, only: open_scene, group_status, kind_len, check_real, check_int, check_choice, put_real, put_int, &
-       put_str, put_logical, int_str, real_str
+  use scene_input, only: kind_len, check_real, check_int, int_str, real_str
+  use schema, only: schema_t, max_steps_all
   use edmd_core, only: ed_t, ed_setup, ed_place_random, ed_place_lattice, ed_velocities, &
        ed_start, ed_run_until, ed_position, ed_kinetic, ed_momentum, ed_check_overlaps, &
        ed_put, ed_sort_by_cell, ed_cells, ed_load_cells, rng_t, state_free, state_seed
@@ -31,7 +31,6 @@ module edmd_dla
 
   integer, parameter :: name_len = 32, max_species = 4
   integer, parameter :: max_explicit = 16          !< disks of placement = 'explicit'
-  integer(i8), parameter :: max_ticks = 1000000000000_i8
 
   type, extends(method_t) :: dla_t
     ! &scene
@@ -79,7 +78,7 @@ module edmd_dla
     type(table_t) :: frames, history, aggregate, events
     type(frames_t) :: frames_bin
   contains
-    procedure :: load, read => read_file, scene_text, open_outputs, advance, finish, close_outputs, output_files
+    procedure :: load, keys, open_outputs, advance, finish, close_outputs, output_files
     procedure :: save_state, restore_state, counters, progress_text, json_fields
   end type dla_t
 
@@ -93,118 +92,113 @@ module edmd_dla
 
 contains
 
-  !> Read (read_file), validate, build the initial state.
+  !> The scene of this kind, declared once (module schema): reading,
+  !> validation, scene.nml and `partsim --describe dla` come from it.
+  subroutine keys(self, s)
+    class(dla_t), intent(inout), target :: self
+    type(schema_t), intent(inout) :: s
+    call s%init('dla', 'kind dla (every key). '//units)
+    call s%group('scene', 'what this scene is', required=.true.)
+    call s%key('kind', self%kind, '', 'the method and system of this scene', choices='dla')
+    call s%key('title', self%title, '', 'free text (UTF-8)')
+    call s%group('box', 'the closed box [0, lx] x [0, ly]')
+    call s%key('lx', self%lx, 'L', 'box side along x', lo=0.0_dp, lo_open=.true., hi=1.0e9_dp)
+    call s%key('ly', self%ly, 'L', 'box side along y', lo=0.0_dp, lo_open=.true., hi=1.0e9_dp)
+    call s%group('disks', 'the free disks, by species')
+    call s%key('n_species', self%n_species, '', 'species in use (the arrays below hold one '// &
+         'value per species)', lo=1_i8, hi=int(max_species, i8))
+    call s%key('count', self%count, '', 'free disks of each species (sum in [1, 1e7])', &
+         lo=0_i8, hi=10000000_i8, size_key='n_species')
+    call s%key('radius', self%radius, 'L', 'radius of each species (<= min(lx, ly)/2; '// &
+         'smallest: README, Smallest radius)', lo=0.0_dp, lo_open=.true., hi=5.0e8_dp, &
+         size_key='n_species')
+    call s%key('density', self%density, 'M/L^2 | M/L', 'mass density of each species: '// &
+         'm = density pi r^2 (mass_rule area, M/L^2) or density pi r (perimeter, M/L)', &
+         lo=0.0_dp, lo_open=.true., hi=1.0e12_dp, size_key='n_species')
+    call s%key('sticky', self%sticky, '', 'species sticks to the aggregate (.false.: a '// &
+         'carrier, bounces off it)', size_key='n_species')
+    call s%key('mass_rule', self%mass_rule, '', 'area: m = density pi r^2; perimeter: '// &
+         'm = density pi r (the seed''s)', choices='area|perimeter')
+    call s%key('kt', self%kt, 'E', 'temperature of the initial velocities', lo=0.0_dp, &
+         lo_open=.true., hi=1.0e12_dp)
+    call s%key('velocities', self%velocities, '', 'fixed_speed: |v| = sqrt(2 kT/m) in '// &
+         'random directions (the seed''s); maxwell: normal components of variance kT/m', &
+         choices='fixed_speed|maxwell')
+    call s%key('placement', self%placement, '', 'random (sequential addition), lattice '// &
+         '(square, in contact) or explicit (x0, y0, vx0, vy0)', choices='random|lattice|explicit')
+    call s%key('x0', self%x0, 'L', 'placement = explicit: x of the free disks, in species order')
+    call s%key('y0', self%y0, 'L', 'placement = explicit: y of the free disks')
+    call s%key('vx0', self%vx0, 'L/tau', 'placement = explicit: vx of the free disks', &
+         lo=-1.0e12_dp, hi=1.0e12_dp)
+    call s%key('vy0', self%vy0, 'L/tau', 'placement = explicit: vy of the free disks', &
+         lo=-1.0e12_dp, hi=1.0e12_dp)
+    call s%key('seed', self%seed, '', 'RNG seed of the initial state', lo=0_i8)
+    call s%group('aggregate', 'the static seed disk and the sticking rule')
+    call s%key('sticking', self%sticking, '', 'free sticky disks stick to the aggregate '// &
+         '(.false.: a hard-disk gas)')
+    call s%key('seed_radius', self%seed_radius, 'L', 'radius of the static seed disk (0 = '// &
+         'none; > 0 with sticking; <= min(lx, ly)/2)', lo=0.0_dp, hi=5.0e8_dp)
+    call s%key('seed_x', self%seed_x, 'L', 'seed centre x (< 0: the box centre; resolved)')
+    call s%key('seed_y', self%seed_y, 'L', 'seed centre y (< 0: the box centre; resolved)')
+    call s%key('last_bounces', self%last_bounces, '', 'the last free sticky disk bounces '// &
+         '(the seed''s option)')
+    call s%key('stop_when_done', self%stop_when_done, '', 'end when every sticky disk is stuck')
+    call s%group('run', 'the event loop')
+    call s%key('calendar', self%calendar, '', 'buckets: O(1); heap: O(log N); rescan: the '// &
+         'seed''s O(N^2); same events', choices='buckets|heap|rescan')
+    call s%key('tick', self%tick, 'tau', 'unit of work (rows are written at ticks; in '// &
+         '[t_end/1e12, t_end])', lo=0.0_dp, lo_open=.true., hi=1.0e12_dp)
+    call s%key('t_end', self%t_end, 'tau', 'run length', lo=0.0_dp, lo_open=.true., &
+         hi=1.0e12_dp)
+    call s%key('guard_tol', self%guard_tol, '1', 'overlap allowed at a contact / (r_i + r_j) '// &
+         '(round-off)', lo=0.0_dp, hi=1.0e-3_dp)
+    call s%group('output', 'cadences in ticks (0 = off)')
+    call s%key('frame_every', self%frame_every, 'ticks', 'frames (0 = off)', lo=0_i8, &
+         hi=max_steps_all)
+    call s%key('history_every', self%history_every, 'ticks', 'history.dat rows (0 = off)', &
+         lo=0_i8, hi=max_steps_all)
+    call s%key('check_every', self%check_every, 'ticks', 'all-pairs overlap guard (0 = off)', &
+         lo=0_i8, hi=max_steps_all)
+    call s%key('checkpoint_every', self%checkpoint_every, 'ticks', 'checkpoints (0 = none)', &
+         lo=0_i8, hi=max_steps_all)
+    call s%key('log_events', self%log_events, '', 'events.dat (small systems)')
+    call s%key('frames_format', self%frames_format, '', 'text: frames.dat, binary: '// &
+         'frames.bin, both', choices='text|binary|both')
+  end subroutine keys
+
+  !> Read, resolve (seed_x, seed_y < 0: the box centre), validate, build the initial state.
   subroutine load(self, path, st)
     class(dla_t), intent(inout), target :: self
     character(len=*), intent(in) :: path
     type(status_t), intent(inout) :: st
-    call self%read(path, st)
+    type(schema_t) :: s
+    call self%keys(s)
+    call s%read(path, st)
     if (st%code /= 0) return
     if (self%seed_x < 0) self%seed_x = 0.5_dp*self%lx   ! < 0: the box centre
     if (self%seed_y < 0) self%seed_y = 0.5_dp*self%ly
+    call s%validate(path, st)
+    if (st%code /= 0) return
     call validate(self, path, st)
     if (st%code /= 0) return
     self%n_ticks = nint(self%t_end/self%tick, i8)
     call initial_state(self, st)
   end subroutine load
 
-  !> The scene file's groups (absent groups keep their defaults; no range checks).
-  subroutine read_file(self, path, st)
-    class(dla_t), intent(inout), target :: self
-    character(len=*), intent(in) :: path
-    type(status_t), intent(inout) :: st
-    character(len=kind_len) :: kind
-    character(len=128) :: title
-    real(dp) :: lx, ly, radius(max_species), density(max_species), kt, seed_radius, seed_x, &
-         seed_y, tick, t_end, guard_tol, x0(max_explicit), y0(max_explicit), &
-         vx0(max_explicit), vy0(max_explicit)
-    integer(i8) :: n_species, count(max_species), seed, frame_every, history_every, check_every, &
-         checkpoint_every
-    character(len=name_len) :: mass_rule, velocities, placement, calendar, frames_format
-    logical :: sticking, last_bounces, stop_when_done, log_events, sticky(max_species)
-    integer :: u, ios
-    character(len=msg_len) :: iom
-    namelist /scene/ kind, title
-    namelist /box/ lx, ly
-    namelist /disks/ n_species, count, radius, density, mass_rule, sticky, kt, velocities, &
-         placement, seed, x0, y0, vx0, vy0
-    namelist /aggregate/ sticking, seed_radius, seed_x, seed_y, last_bounces, stop_when_done
-    namelist /run/ calendar, tick, t_end, guard_tol
-    namelist /output/ frame_every, history_every, check_every, checkpoint_every, log_events, &
-         frames_format
-    kind = self%kind; title = self%title; lx = self%lx; ly = self%ly
-    n_species = self%n_species; count = self%count; radius = self%radius
-    density = self%density; mass_rule = self%mass_rule; sticky = self%sticky; kt = self%kt
-    velocities = self%velocities; placement = self%placement; seed = self%seed
-    x0 = self%x0; y0 = self%y0; vx0 = self%vx0; vy0 = self%vy0
-    sticking = self%sticking; seed_radius = self%seed_radius; seed_x = self%seed_x
-    seed_y = self%seed_y; last_bounces = self%last_bounces; stop_when_done = self%stop_when_done
-    calendar = self%calendar; tick = self%tick; t_end = self%t_end; guard_tol = self%guard_tol
-    frame_every = self%frame_every; history_every = self%history_every
-    check_every = self%check_every; checkpoint_every = self%checkpoint_every
-    log_events = self%log_events; frames_format = self%frames_format
-    call open_scene(path, u, st)
-    if (st%code /= 0) return
-    read(u, nml=scene, iostat=ios, iomsg=iom)
-    call group_status(path, 'scene', ios, iom, .false., st)
-    rewind(u); read(u, nml=box, iostat=ios, iomsg=iom)
-    call group_status(path, 'box', ios, iom, .false., st)
-    rewind(u); read(u, nml=disks, iostat=ios, iomsg=iom)
-    call group_status(path, 'disks', ios, iom, .false., st)
-    rewind(u); read(u, nml=aggregate, iostat=ios, iomsg=iom)
-    call group_status(path, 'aggregate', ios, iom, .false., st)
-    rewind(u); read(u, nml=run, iostat=ios, iomsg=iom)
-    call group_status(path, 'run', ios, iom, .false., st)
-    rewind(u); read(u, nml=output, iostat=ios, iomsg=iom)
-    call group_status(path, 'output', ios, iom, .false., st)
-    close(u)
-    if (st%code /= 0) return
-    self%kind = kind; self%title = title; self%lx = lx; self%ly = ly
-    self%n_species = n_species; self%count = count; self%radius = radius
-    self%density = density; self%mass_rule = mass_rule; self%sticky = sticky; self%kt = kt
-    self%velocities = velocities; self%placement = placement; self%seed = seed
-    self%x0 = x0; self%y0 = y0; self%vx0 = vx0; self%vy0 = vy0
-    self%sticking = sticking; self%seed_radius = seed_radius; self%seed_x = seed_x
-    self%seed_y = seed_y; self%last_bounces = last_bounces; self%stop_when_done = stop_when_done
-    self%calendar = calendar; self%tick = tick; self%t_end = t_end; self%guard_tol = guard_tol
-    self%frame_every = frame_every; self%history_every = history_every
-    self%check_every = check_every; self%checkpoint_every = checkpoint_every
-    self%log_events = log_events; self%frames_format = frames_format
-  end subroutine read_file
-
+  !> Rules across keys (each key's own range is the declaration's, checked before).
   subroutine validate(self, path, st)
     class(dla_t), intent(in) :: self
     character(len=*), intent(in) :: path
     type(status_t), intent(inout) :: st
-    integer :: k
+    integer :: ns
     real(dp) :: rmax_box, eta
-    character(len=3) :: ks
-    call check_choice(path, 'scene', 'kind', self%kind, ['dla'], st)
-    call check_real(path, 'box', 'lx', self%lx, 0.0_dp, 1.0e9_dp, .false., st)
-    call check_real(path, 'box', 'ly', self%ly, 0.0_dp, 1.0e9_dp, .false., st)
-    call check_int(path, 'disks', 'n_species', self%n_species, 1_i8, int(max_species, i8), st)
-    if (st%code /= 0) return
+    ns = int(self%n_species)
     rmax_box = 0.5_dp*min(self%lx, self%ly)
-    do k = 1, int(self%n_species)
-      write(ks, '(a,i0,a)') '(', k, ')'
-      call check_int(path, 'disks', 'count'//trim(ks), self%count(k), 0_i8, 10000000_i8, st)
-      call check_real(path, 'disks', 'radius'//trim(ks), self%radius(k), 0.0_dp, rmax_box, &
-           .false., st)
-      call check_real(path, 'disks', 'density'//trim(ks), self%density(k), 0.0_dp, 1.0e12_dp, &
-           .false., st)
-    end do
-    if (st%code /= 0) return
-    call check_int(path, 'disks', 'count (sum over species)', &
-         sum(self%count(1:self%n_species)), 1_i8, 10000000_i8, st)
-    call check_choice(path, 'disks', 'mass_rule', self%mass_rule, [character(len=name_len) :: &
-         'area', 'perimeter'], st)
+    call check_int(path, 'disks', 'count (sum over species)', sum(self%count(1:ns)), 1_i8, &
+         10000000_i8, st)
+    call validate_radii(self, path, st)
     call validate_sticky(self, path, st)
-    call check_real(path, 'disks', 'kt', self%kt, 0.0_dp, 1.0e12_dp, .false., st)
-    call check_choice(path, 'disks', 'velocities', self%velocities, [character(len=name_len) :: &
-         'fixed_speed', 'maxwell'], st)
-    call check_choice(path, 'disks', 'placement', self%placement, [character(len=name_len) :: &
-         'random', 'lattice', 'explicit'], st)
-    call check_int(path, 'disks', 'seed', self%seed, 0_i8, huge(1_i8), st)
+    if (st%code /= 0) return
     call check_real(path, 'aggregate', 'seed_radius', self%seed_radius, 0.0_dp, rmax_box, &
          .not. self%sticking, st)
     if (st%code /= 0) return
@@ -216,25 +210,116 @@ contains
     end if
     if (self%placement == 'explicit') call validate_explicit(self, path, st)
     if (st%code /= 0) return
-    eta = (sum(pi*self%radius(1:self%n_species)**2*real(self%count(1:self%n_species), dp)) + &
-         pi*self%seed_radius**2)/(self%lx*self%ly)
+    eta = (sum(pi*self%radius(1:ns)**2*real(self%count(1:ns), dp)) + pi*self%seed_radius**2)/ &
+         (self%lx*self%ly)
     if (eta > 0.9_dp) call set_error(st, exit_bad_input, trim(path)//': &disks count = '// &
-         int_str(sum(self%count(1:self%n_species)))//': packing fraction '//real_str(eta)// &
+         int_str(sum(self%count(1:ns)))//': packing fraction '//real_str(eta)// &
          ' of the box: allowed < 0.9 (close packing of disks: 0.9069)')
-    call check_choice(path, 'run', 'calendar', self%calendar, [character(len=name_len) :: &
-         'buckets', 'heap', 'rescan'], st)
-    call check_real(path, 'run', 't_end', self%t_end, 0.0_dp, 1.0e12_dp, .false., st)
     if (st%code /= 0) return
-    call check_real(path, 'run', 'tick', self%tick, self%t_end/real(max_ticks, dp), self%t_end, &
-         .true., st)
-    call check_real(path, 'run', 'guard_tol', self%guard_tol, 0.0_dp, 1.0e-3_dp, .false., st)
-    call check_int(path, 'output', 'frame_every', self%frame_every, 0_i8, max_ticks, st)
-    call check_int(path, 'output', 'history_every', self%history_every, 0_i8, max_ticks, st)
-    call check_int(path, 'output', 'check_every', self%check_every, 0_i8, max_ticks, st)
-    call check_int(path, 'output', 'checkpoint_every', self%checkpoint_every, 0_i8, max_ticks, st)
-    call check_choice(path, 'output', 'frames_format', self%frames_format, &
-         [character(len=name_len) :: 'text', 'binary', 'both'], st)
+    if (self%tick > self%t_end .or. self%t_end/self%tick > real(max_steps_all, dp)) &
+         call set_error(st, exit_bad_input, trim(path)//': &run tick = '// &
+         real_str(self%tick)//': allowed [t_end/'//int_str(max_steps_all)//', t_end] = ['// &
+         real_str(self%t_end/real(max_steps_all, dp))//', '//real_str(self%t_end)// &
+         '] tau (at most '//int_str(max_steps_all)//' ticks)')
   end subroutine validate
+
+  !> The radii the event arithmetic resolves (issue 29). A collision time is the
+  !> root of |dr + dv t|^2 = (r_i + r_j)^2 from the two disks' stored states, which
+  !> are D apart: the constant term |dr|^2 - (r_i + r_j)^2 carries eps D^2 of round-off,
+  !> i.e. a contact misplaced by ~ eps (D/(r_i + r_j))^2 of r_i + r_j (measured: 1000
+  !> disks of r = 1e-4, 1.5e-4 and 2e-4 L in a unit box overlap by 1.1e-9 (r_i + r_j)
+  !> within 1500 events). D is at most the box diagonal, and in a gas that stays (sticking
+  !> off, or carriers) about the longest flight: 30 mean free paths (the longest of 1e12
+  !> exponential flights is ln(1e12) = 28 of them), lambda = A / (2 sqrt(2) N r).
+  !> Event times are absolute: a disk moves v eps t_end in one rounding of the clock at
+  !> t_end. Both must stay within tol = max(guard_tol, 1e-9) of a contact:
+  !>   eps (D / (2 r))^2 <= tol,   v eps t_end <= tol r   (v = sqrt(2 kT/m), or the
+  !>   largest explicit speed),
+  !> and the mass m = density pi r^2 (or pi r) >= 1e-150 M (mass products in the impulse).
+  !> The cell grid (side >= the largest diameter) holds at most 2^26 cells.
+  subroutine validate_radii(self, path, st)
+    class(dla_t), intent(in) :: self
+    character(len=*), intent(in) :: path
+    type(status_t), intent(inout) :: st
+    real(dp), parameter :: eps = epsilon(1.0_dp), tol_floor = 1.0e-9_dp, m_min = 1.0e-150_dp
+    real(dp), parameter :: max_cells = 67108864.0_dp   ! 2^26 cells (256 MiB of list heads)
+    real(dp), parameter :: flights = 30.0_dp           ! longest flight / mean free path
+    real(dp) :: tol, diag, span, r_space, r_time, r_mass, r_min, rmax_box, p, v, rmax, cells
+    real(dp) :: n_gas, d
+    integer :: k, ns, n, hi
+    character(len=:), allocatable :: name, why, fix, empty
+    if (st%code /= 0) return
+    ns = int(self%n_species)
+    tol = max(self%guard_tol, tol_floor)
+    span = sqrt(tol/eps)                      ! D/(2 r) allowed
+    diag = hypot(self%lx, self%ly)
+    rmax_box = 0.5_dp*min(self%lx, self%ly)
+    p = merge(1.0_dp, 2.0_dp, self%mass_rule == 'perimeter')
+    n_gas = real(sum(self%count(1:ns)), dp)   ! disks that stay free (sticking off, carriers)
+    if (self%sticking) n_gas = real(sum(self%count(1:ns), mask=.not. self%sticky(1:ns)), dp)
+    n = 0
+    do k = 1, ns
+      name = 'radius('//int_str(int(k, i8))//')'
+      if (self%radius(k) > rmax_box) then
+        call set_error(st, exit_bad_input, trim(path)//': &disks '//name//' = '// &
+             real_str(self%radius(k))//': allowed (0, min(lx, ly)/2 = '//real_str(rmax_box)// &
+             '] L')
+        return
+      end if
+      if (self%count(k) == 0) cycle
+      ! D = min(diag, flights lambda(r)): eps (D/(2 r))^2 <= tol holds from the smaller of
+      ! r = diag/(2 span) and r = sqrt(flights A / (4 sqrt(2) N span))
+      r_space = 0.5_dp*diag/span
+      if (n_gas > 0) r_space = min(r_space, sqrt(flights*self%lx*self%ly/ &
+           (4.0_dp*sqrt(2.0_dp)*n_gas*span)))
+      r_mass = exp((log(m_min) - log(self%density(k)*pi))/p)
+      if (self%placement == 'explicit') then    ! (more than max_explicit: validate_explicit)
+        hi = int(min(n + self%count(k), int(max_explicit, i8)))
+        v = 0
+        if (hi > n) v = maxval(hypot(self%vx0(n + 1:hi), self%vy0(n + 1:hi)))
+        r_time = v*eps*self%t_end/tol
+        why = 'the largest explicit speed, '//real_str(v)//' L/tau'
+      else       ! v = sqrt(2 kT/(density pi r^p)): v eps t_end <= tol r solved for r (logs)
+        r_time = exp((0.5_dp*(log(2.0_dp*self%kt) - log(self%density(k)*pi)) + &
+             log(eps*self%t_end/tol))/(1.0_dp + 0.5_dp*p))
+        why = 'sqrt(2 kT/m) = '//real_str(sqrt(2.0_dp*self%kt/(self%density(k)*pi* &
+             self%radius(k)**p)))//' L/tau'
+      end if
+      n = n + int(self%count(k))
+      r_min = max(r_space, r_time, r_mass)
+      if (self%radius(k) >= r_min) cycle
+      if (r_min == r_space) then
+        d = diag
+        if (n_gas > 0) d = min(diag, flights*self%lx*self%ly/(2.0_dp*sqrt(2.0_dp)*n_gas* &
+             self%radius(k)))
+        why = 'a contact computed from states D = '//real_str(d)//' L apart (the box '// &
+             'diagonal, or 30 mean free paths in a gas) is misplaced by eps (D/(2 r))^2 of '// &
+             'r_i + r_j (eps = 2.2e-16), which must stay <= tol'
+        fix = 'a smaller box, or a larger guard_tol'
+      else if (r_min == r_time) then
+        why = 'a disk moves v eps t_end in one rounding of the clock at t_end = '// &
+             real_str(self%t_end)//' tau (v = '//why//'), which must stay <= tol r'
+        fix = 'a shorter t_end, a lower kt or a larger density'
+      else
+        why = 'the mass density pi r^'//trim(merge('1', '2', p == 1.0_dp))//' must be >= '// &
+             '1e-150 M'
+        fix = 'a larger density'
+      end if
+      empty = ''
+      if (r_min > rmax_box) empty = ' (empty: '//fix//')'
+      call set_error(st, exit_bad_input, trim(path)//': &disks '//name//' = '// &
+           real_str(self%radius(k))//': allowed ['//real_str(r_min)//', '//real_str(rmax_box)// &
+           '] L here'//empty//': below '//real_str(r_min)//', '//why// &
+           ' (tol = max(&run guard_tol, 1e-9) = '//real_str(tol)//')')
+      return
+    end do
+    rmax = max(maxval(self%radius(1:ns), mask=self%count(1:ns) > 0), self%seed_radius)
+    cells = (self%lx/(2.0_dp*rmax))*(self%ly/(2.0_dp*rmax))
+    if (cells > max_cells) call set_error(st, exit_bad_input, trim(path)//': &disks radius = '// &
+         real_str(rmax)//' (the largest): allowed >= '// &
+         real_str(0.5_dp*sqrt(self%lx*self%ly/max_cells))//' L here: the cell grid of side '// &
+         '>= the largest diameter would hold '//real_str(cells)//' cells, at most 2^26')
+  end subroutine validate_radii
 
   !> With sticking on, some species with disks must stick (carriers alone grow nothing: a gas
   !> is sticking = .false.).
@@ -358,74 +443,6 @@ contains
     self%t_hist = 0
     self%n_members = 0
   end subroutine initial_state
-
-  function scene_text(self) result(text)
-    class(dla_t), intent(inout), target :: self
-    character(len=:), allocatable :: text
-    integer :: k
-    character(len=4) :: ks
-    text = ''
-    text = text//'! resolved scene: kind dla (every key). '//units//achar(10)
-    text = text//'&scene'//achar(10)
-    call put_str(text, 'kind', self%kind, '')
-    call put_str(text, 'title', self%title, '')
-    text = text//'/'//achar(10)
-    text = text//'&box'//achar(10)
-    call put_real(text, 'lx', self%lx, 'L')
-    call put_real(text, 'ly', self%ly, 'L')
-    text = text//'/'//achar(10)
-    text = text//'&disks'//achar(10)
-    call put_int(text, 'n_species', self%n_species, '')
-    do k = 1, max_species
-      write(ks, '(a,i0,a)') '(', k, ')'
-      call put_int(text, 'count'//trim(ks), self%count(k), 'free disks')
-      call put_real(text, 'radius'//trim(ks), self%radius(k), 'L')
-      call put_real(text, 'density'//trim(ks), self%density(k), &
-           merge('M/L^2', 'M/L  ', self%mass_rule == 'area'))
-      call put_logical(text, 'sticky'//trim(ks), self%sticky(k), &
-           'sticks to the aggregate (.false.: a carrier, bounces off it)')
-    end do
-    call put_str(text, 'mass_rule', self%mass_rule, 'area: m = density pi r^2; perimeter: '// &
-         'm = density pi r (the seed''s)')
-    call put_real(text, 'kt', self%kt, 'E')
-    call put_str(text, 'velocities', self%velocities, '')
-    call put_str(text, 'placement', self%placement, '')
-    do k = 1, max_explicit      ! every key, also when placement is not 'explicit'
-      write(ks, '(a,i0,a)') '(', k, ')'
-      call put_real(text, 'x0'//trim(ks), self%x0(k), 'L (placement = explicit)')
-      call put_real(text, 'y0'//trim(ks), self%y0(k), 'L')
-      call put_real(text, 'vx0'//trim(ks), self%vx0(k), 'L/tau')
-      call put_real(text, 'vy0'//trim(ks), self%vy0(k), 'L/tau')
-    end do
-    call put_int(text, 'seed', self%seed, 'RNG of the initial state')
-    text = text//'/'//achar(10)
-    text = text//'&aggregate'//achar(10)
-    call put_logical(text, 'sticking', self%sticking, '')
-    call put_real(text, 'seed_radius', self%seed_radius, 'L (0 = no seed disk)')
-    call put_real(text, 'seed_x', self%seed_x, 'L')
-    call put_real(text, 'seed_y', self%seed_y, 'L')
-    call put_logical(text, 'last_bounces', self%last_bounces, &
-         'the last free sticky disk bounces')
-    call put_logical(text, 'stop_when_done', self%stop_when_done, &
-         'end when every sticky disk is stuck')
-    text = text//'/'//achar(10)
-    text = text//'&run'//achar(10)
-    call put_str(text, 'calendar', self%calendar, 'buckets: O(1); heap: O(log N); rescan: '// &
-         'the seed''s O(N^2); same events')
-    call put_real(text, 'tick', self%tick, 'tau (unit of work)')
-    call put_real(text, 't_end', self%t_end, 'tau')
-    call put_real(text, 'guard_tol', self%guard_tol, 'overlap allowed / (r_i + r_j)')
-    text = text//'/'//achar(10)
-    text = text//'&output'//achar(10)
-    call put_int(text, 'frame_every', self%frame_every, 'ticks (0 = off)')
-    call put_int(text, 'history_every', self%history_every, 'ticks (0 = off)')
-    call put_int(text, 'check_every', self%check_every, 'ticks: all-pairs overlap guard (0 = off)')
-    call put_int(text, 'checkpoint_every', self%checkpoint_every, 'ticks (0 = none)')
-    call put_logical(text, 'log_events', self%log_events, 'events.dat (small systems)')
-    call put_str(text, 'frames_format', self%frames_format, &
-         'text: frames.dat, binary: frames.bin, both')
-    text = text//'/'//achar(10)
-  end function scene_text
 
   subroutine open_outputs(self, dir, append, st)
     class(dla_t), intent(inout) :: self
