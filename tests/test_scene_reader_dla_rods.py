@@ -95,7 +95,7 @@ def _refused(tmp: Path, text: str) -> str:
     (RODS.replace("n = 100", "n = NaN"), ["line 2: &rods n = NaN: must be an integer"]),
     (RODS.replace("n = 100", "n = 100, dt = NaN"),
      ["line 2: &rods dt = NaN: must be a finite number"]),
-    (RODS.replace("n = 100", "n = 1"), ["line 2: &rods n = 1: allowed integers in [2, 200000000]"]),
+    (RODS.replace("n = 100", "n = 1"), ["line 2: &rods n = 1: allowed range [2, 200000000]"]),
 ])
 def test_bad_scene_refused_naming_line_and_key(tmp_path: Path, text: str,
                                                needles: list[str]) -> None:
