@@ -45,6 +45,8 @@
 !>   is unstable for alpha L^2 / T > 3 pi / 2.
 !> The interaction energy per sample [m L^2/tau^2]: <W(theta_i)> for the
 !> one-body wells, (1/2) <U(theta_i)> for Onsager (pairs counted once).
+!GCC$ builtin (cos) attributes simd (notinbranch) if('x86_64')
+!GCC$ builtin (sin) attributes simd (notinbranch) if('x86_64')
 module dsmc_mean_field
   use kinds, only: dp, i8, pi
   use parallel, only: par_min_loop
@@ -54,6 +56,7 @@ module dsmc_mean_field
   public :: field_t, transport, interaction_energy, onsager_modes, onsager_coefficient
 
   integer, parameter :: chunk = 256   !< samples per vectorised block of the Fourier form
+  integer(i8), parameter :: span = 16384   !< samples per chunk of the transport's loops
 
   type :: field_t
     character(len=16) :: potential = 'none'   !< none | quadratic | dipole | onsager
@@ -118,21 +121,26 @@ contains
     sk = sk/real(n, dp)
   end subroutine modes_of
 
-  !> One transport step of all samples (semi-implicit Euler, header).
-  subroutine transport(f, dt, theta, omega)
+  !> One transport step of all samples (semi-implicit Euler, header), and the guard's sums of
+  !> the new state from the same pass: absum = sum |theta| + |omega| (NaN and Inf propagate
+  !> into it), thmax = max |theta| [rad]. The one-body wells kick and drift in one loop; the
+  !> loops run by chunks of `span` samples (on the threads), each a vectorised kernel.
+  subroutine transport(f, dt, theta, omega, absum, thmax)
     type(field_t), intent(in) :: f
     real(dp), intent(in) :: dt
-    real(dp), intent(inout) :: theta(:), omega(:)
+    real(dp), contiguous, intent(inout) :: theta(:), omega(:)
+    real(dp), intent(out) :: absum, thmax
+    real(dp) :: g, damp, s, tm
+    integer(i8) :: c, k0, k1, n
+    integer :: form
+    n = size(theta, kind=i8)
     select case (trim(f%potential))
-    case ('none')
-      theta = theta + dt*omega
     case ('quadratic')
-      omega = (omega - dt*(f%alpha/f%inertia)*(theta - f%theta_hat))/(1.0_dp + dt*f%beta)
-      theta = theta + dt*omega
+      form = 1
     case ('dipole')
-      omega = omega - dt*(f%alpha/f%inertia)*cos(theta - f%theta_hat)
-      theta = theta + dt*omega
+      form = 2
     case ('onsager')
+      form = 0
       select case (trim(f%force))
       case ('exact')
         call kick_onsager_exact(f, dt, theta, omega)
@@ -141,9 +149,87 @@ contains
       case default
         call kick_onsager_fourier(f, dt, theta, omega)
       end select
-      theta = theta + dt*omega
+    case default
+      form = 0
     end select
+    g = dt*(f%alpha/f%inertia)
+    damp = 1.0_dp + dt*f%beta
+    absum = 0.0_dp
+    thmax = 0.0_dp
+    !$omp parallel do schedule(static) if(n >= par_min_loop) private(k0, k1, s, tm) &
+    !$omp reduction(+: absum) reduction(max: thmax)
+    do c = 1, (n + span - 1)/span
+      k0 = (c - 1)*span + 1
+      k1 = min(n, c*span)
+      select case (form)
+      case (1)
+        call step_quadratic(k1 - k0 + 1, dt, g, f%theta_hat, damp, theta(k0:k1), omega(k0:k1), &
+             s, tm)
+      case (2)
+        call step_dipole(k1 - k0 + 1, dt, g, f%theta_hat, theta(k0:k1), omega(k0:k1), s, tm)
+      case default
+        call drift(k1 - k0 + 1, dt, theta(k0:k1), omega(k0:k1), s, tm)
+      end select
+      absum = absum + s
+      thmax = max(thmax, tm)
+    end do
+    !$omp end parallel do
   end subroutine transport
+
+  !> theta += dt omega on n samples; s = sum |theta| + |omega|, tm = max |theta| after.
+  pure subroutine drift(n, dt, theta, omega, s, tm)
+    integer(i8), intent(in) :: n
+    real(dp), intent(in) :: dt
+    real(dp), intent(inout) :: theta(n)
+    real(dp), intent(in) :: omega(n)
+    real(dp), intent(out) :: s, tm
+    integer(i8) :: k
+    s = 0.0_dp
+    tm = 0.0_dp
+    !$omp simd reduction(+: s) reduction(max: tm)
+    do k = 1, n
+      theta(k) = theta(k) + dt*omega(k)
+      s = s + abs(theta(k)) + abs(omega(k))
+      tm = max(tm, abs(theta(k)))
+    end do
+  end subroutine drift
+
+  !> 'quadratic': omega = (omega - g (theta - theta_hat))/damp, g = dt alpha/I,
+  !> damp = 1 + dt beta, then the drift; s, tm as in drift.
+  pure subroutine step_quadratic(n, dt, g, theta_hat, damp, theta, omega, s, tm)
+    integer(i8), intent(in) :: n
+    real(dp), intent(in) :: dt, g, theta_hat, damp
+    real(dp), intent(inout) :: theta(n), omega(n)
+    real(dp), intent(out) :: s, tm
+    integer(i8) :: k
+    s = 0.0_dp
+    tm = 0.0_dp
+    !$omp simd reduction(+: s) reduction(max: tm)
+    do k = 1, n
+      omega(k) = (omega(k) - g*(theta(k) - theta_hat))/damp
+      theta(k) = theta(k) + dt*omega(k)
+      s = s + abs(theta(k)) + abs(omega(k))
+      tm = max(tm, abs(theta(k)))
+    end do
+  end subroutine step_quadratic
+
+  !> 'dipole': omega -= g cos(theta - theta_hat), g = dt alpha/I, then the drift.
+  pure subroutine step_dipole(n, dt, g, theta_hat, theta, omega, s, tm)
+    integer(i8), intent(in) :: n
+    real(dp), intent(in) :: dt, g, theta_hat
+    real(dp), intent(inout) :: theta(n), omega(n)
+    real(dp), intent(out) :: s, tm
+    integer(i8) :: k
+    s = 0.0_dp
+    tm = 0.0_dp
+    !$omp simd reduction(+: s) reduction(max: tm)
+    do k = 1, n
+      omega(k) = omega(k) - g*cos(theta(k) - theta_hat)
+      theta(k) = theta(k) + dt*omega(k)
+      s = s + abs(theta(k)) + abs(omega(k))
+      tm = max(tm, abs(theta(k)))
+    end do
+  end subroutine step_dipole
 
   !> omega += dt F, F_i = -(alpha L^2/I) (1/N) sum_j sign(sin(th_i - th_j)) cos(th_i - th_j).
   subroutine kick_onsager_exact(f, dt, theta, omega)
