@@ -68,7 +68,7 @@
 !GCC$ builtin (cos) attributes simd (notinbranch) if('x86_64')
 !GCC$ builtin (sin) attributes simd (notinbranch) if('x86_64')
 module dsmc_collisions
-  use, intrinsic :: iso_c_binding, only: c_int64_t, c_double
+  use, intrinsic :: iso_c_binding, only: c_int64_t, c_double, c_loc, c_ptr
   use kinds, only: dp, i8, pi
   use parallel, only: par_min_loop
   implicit none
@@ -104,6 +104,12 @@ module dsmc_collisions
       integer(c_int64_t), value :: key, step, per_step, offset, n
       real(c_double), intent(out) :: u(*)
     end subroutine dsmc_uniforms
+    subroutine dsmc_prefetch(m, idx, base, stride) bind(C, name='dsmc_prefetch')
+      import :: c_int64_t, c_ptr
+      integer(c_int64_t), value :: m, stride
+      integer(c_int64_t), intent(in) :: idx(*)
+      type(c_ptr), value :: base
+    end subroutine dsmc_prefetch
   end interface
 
 contains
@@ -133,16 +139,42 @@ contains
   !> 2 nc distinct indices of 1..N without replacement: the first 2 nc entries
   !> of `perm` after a partial Fisher-Yates shuffle driven by the uniforms u(1:2nc).
   !> `perm` stays a permutation of 1..N (it is part of the checkpointed state).
-  pure subroutine draw_pairs(perm, u, nc)
-    integer(i8), contiguous, intent(inout) :: perm(:)
+  subroutine draw_pairs(perm, u, nc)
+    integer(i8), contiguous, target, intent(inout) :: perm(:)
     real(dp), contiguous, intent(in) :: u(:)
     integer(i8), intent(in) :: nc
-    integer(i8) :: k, j, n, tmp
+    integer, parameter :: ahead = 64        !< swaps whose targets are prefetched together
+    integer(i8) :: jc(ahead), jn(ahead), k, k0, kn, j, n, tmp
+    integer :: a, mc, mn
     n = size(perm, kind=i8)
-    do k = 1, 2*nc
-      j = k + min(int(u(k)*real(n - k + 1, dp), i8), n - k)
-      tmp = perm(k); perm(k) = perm(j); perm(j) = tmp
+    mn = 0
+    call targets(1_i8, jn, mn)
+    do k0 = 1, 2*nc, ahead
+      jc(1:mn) = jn(1:mn)
+      mc = mn
+      kn = k0 + ahead
+      call targets(kn, jn, mn)               ! the next chunk's targets, in flight meanwhile
+      if (mn > 0) call dsmc_prefetch(int(mn, i8), jn, c_loc(perm(1)), 8_i8)
+      do a = 1, mc
+        k = k0 + a - 1
+        j = jc(a)
+        tmp = perm(k); perm(k) = perm(j); perm(j) = tmp
+      end do
     end do
+  contains
+    !> j(1:mm) of the swaps k0.. (at most `ahead`, up to 2 nc): k + floor(u(k) (n - k + 1)).
+    subroutine targets(k0, j, mm)
+      integer(i8), intent(in) :: k0
+      integer(i8), intent(out) :: j(ahead)
+      integer, intent(out) :: mm
+      integer :: b
+      integer(i8) :: k
+      mm = int(max(0_i8, min(int(ahead, i8), 2*nc - k0 + 1)))
+      do b = 1, mm
+        k = k0 + b - 1
+        j(b) = k + min(int(u(k)*real(n - k + 1, dp), i8), n - k)
+      end do
+    end subroutine targets
   end subroutine draw_pairs
 
   !> The rod law on the nc = size(de) pairs (pidx(2p-1), pidx(2p)) of step `step`; pair p's
@@ -155,22 +187,29 @@ contains
     integer(i8), contiguous, intent(in) :: pidx(:)
     integer(i8), intent(in) :: key, step
     logical, intent(in) :: audit
-    real(dp), contiguous, intent(inout) :: v(:, :), omega(:)
-    real(dp), contiguous, intent(in) :: theta(:)
+    real(dp), contiguous, target, intent(inout) :: v(:, :), omega(:)
+    real(dp), contiguous, target, intent(in) :: theta(:)
     real(dp), intent(out) :: de(:)
     logical, intent(out) :: bad
     real(dp), intent(out) :: ade, adp
-    integer(i8) :: nc, nb, b, p0, m
+    integer(i8) :: nc, nb, b, p0, m, q0, q1
     nc = size(de, kind=i8)
     nb = (nc + block - 1)/block
     bad = .false.
     ade = 0.0_dp
     adp = 0.0_dp
-    !$omp parallel do schedule(static) if(nc >= par_min_loop) default(shared) private(p0, m) &
-    !$omp reduction(.or.: bad) reduction(max: ade, adp)
+    !$omp parallel do schedule(static) if(nc >= par_min_loop) default(shared) &
+    !$omp private(p0, m, q0, q1) reduction(.or.: bad) reduction(max: ade, adp)
     do b = 1, nb
       p0 = (b - 1)*block + 1
       m = min(int(block, i8), nc - p0 + 1)
+      if (b < nb) then       ! the next block's samples, in flight while this one computes
+        q0 = 2*(p0 + m) - 1
+        q1 = min(2*nc, q0 + 2*block - 1)
+        call dsmc_prefetch(q1 - q0 + 1, pidx(q0:q1), c_loc(v(1, 1)), 16_i8)
+        call dsmc_prefetch(q1 - q0 + 1, pidx(q0:q1), c_loc(theta(1)), 8_i8)
+        call dsmc_prefetch(q1 - q0 + 1, pidx(q0:q1), c_loc(omega(1)), 8_i8)
+      end if
       call collide_block(c, pidx(2*p0 - 1:2*(p0 + m - 1)), key, step, &
            numbers_per_pair*nc, 2*nc + 3*(p0 - 1), audit, v, theta, omega, de(p0:p0 + m - 1), &
            bad, ade, adp)
