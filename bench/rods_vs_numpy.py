@@ -11,8 +11,9 @@ Reproduce (repository root; about 3 minutes):
 
 Scene: Test 1 (runs/rods_test1_free.nml: free transport + elastic rod collisions, m = I = L = 1,
 dt = 0.05, tau = 1, nc = N dt/(2 tau) pairs per step), outputs off, at N = 1e5 and 1e6.
-Per repeat, in this order: the engine on 1 thread, numpy, the engine on 2 threads (and the
---base engine on 1 thread). Engine per step = (run of 1 + S steps - run of 1 step)/S from the
+Per repeat, in this order: the engine on 1 thread, numpy, the engine on 2 threads (libgomp's
+default wait policy, then OMP_WAIT_POLICY=passive: idle threads sleep instead of spinning, which
+matters when other jobs share the cores) and the --base engine on 1 thread. Engine per step = (run of 1 + S steps - run of 1 step)/S from the
 child's CPU time (1 thread) and from run.json's wall time (1 and 2 threads); numpy per step =
 this process's CPU time over S steps after 3 warm-up steps (numpy runs on one thread). The
 summary gives the min and the median over the repeats and the ratios numpy/engine of each.
@@ -64,21 +65,26 @@ def write_scene(tmp: Path, n: int, steps: int, extra: dict | None = None) -> Pat
     return sc.write(tmp / f"t1_{n}_{steps}.nml")
 
 
-def engine_run(exe: str, scene: Path, out: Path, threads: int) -> tuple[float, float]:
-    """(CPU s of the child, wall s of run.json) of one engine run."""
+def engine_run(exe: str, scene: Path, out: Path, threads: int,
+               wait: str | None = None) -> tuple[float, float]:
+    """(CPU s of the child, wall s of run.json) of one engine run (OMP_WAIT_POLICY = wait)."""
+    env = {**os.environ, "OMP_NUM_THREADS": str(threads)}
+    env.pop("OMP_WAIT_POLICY", None)
+    if wait:
+        env["OMP_WAIT_POLICY"] = wait
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     subprocess.run([exe, str(scene), "--out", str(out), "--overwrite", "--quiet"], check=True,
-                   env={**os.environ, "OMP_NUM_THREADS": str(threads)})
+                   env=env)
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
     return cpu, float(json.loads((out / "run.json").read_text())["wall_time_s"])
 
 
 def engine_per_step(exe: str, one: Path, full: Path, steps: int, threads: int,
-                    tmp: Path) -> tuple[float, float]:
+                    tmp: Path, wait: str | None = None) -> tuple[float, float]:
     """Engine (CPU, wall) per step [s]: (run of 1 + steps - run of 1 step)/steps."""
-    c1, w1 = engine_run(exe, one, tmp / "o1", threads)
-    cn, wn = engine_run(exe, full, tmp / "on", threads)
+    c1, w1 = engine_run(exe, one, tmp / "o1", threads, wait)
+    cn, wn = engine_run(exe, full, tmp / "on", threads, wait)
     return (cn - c1) / steps, (wn - w1) / steps
 
 
@@ -109,12 +115,17 @@ def timing(repeat: int, base: str | None, tmp: Path) -> pd.DataFrame:
             c2, w2 = engine_per_step(exe, one, full, steps, 2, tmp)
             rows.append({"N": n, "repeat": r, "who": "engine", "threads": 2, "cpu_per_step_s": c2,
                          "wall_per_step_s": w2, "load_1min": load})
+            c3, w3 = engine_per_step(exe, one, full, steps, 2, tmp, "passive")
+            rows.append({"N": n, "repeat": r, "who": "engine, OMP_WAIT_POLICY=passive",
+                         "threads": 2, "cpu_per_step_s": c3, "wall_per_step_s": w3,
+                         "load_1min": load})
             if base:
                 cb, wb = engine_per_step(base, one, full, steps, 1, tmp)
                 rows.append({"N": n, "repeat": r, "who": "base engine", "threads": 1,
                              "cpu_per_step_s": cb, "wall_per_step_s": wb, "load_1min": load})
-            print(f"N={n} repeat {r}: " + ", ".join(
-                f"{x['who']}/{x['threads']}t {1e3 * x['cpu_per_step_s']:.3f} ms"
+            print(f"N={n} repeat {r} (CPU, wall ms/step): " + ", ".join(
+                f"{x['who']}/{x['threads']}t {1e3 * x['cpu_per_step_s']:.3f} "
+                f"{1e3 * x['wall_per_step_s']:.3f}"
                 for x in rows if x["N"] == n and x["repeat"] == r), flush=True)
     return pd.DataFrame(rows)
 
