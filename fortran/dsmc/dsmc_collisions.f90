@@ -65,6 +65,9 @@
 !> libmvec), and the results are scattered back. A block's impact uniforms come from the
 !> counter-based stream of dsmc_rng.c at counters fixed by (step, pair): the numbers, hence
 !> the samples, do not depend on the thread count or on the order the blocks are run in.
+!
+! glibc's vector cos/sin (libmvec, linked through libm's AS_NEEDED; at most 4 ulp): GCC calls
+! them for the loops below (8 lanes with -march=native, 2 without). x86_64 glibc only.
 !GCC$ builtin (cos) attributes simd (notinbranch) if('x86_64')
 !GCC$ builtin (sin) attributes simd (notinbranch) if('x86_64')
 module dsmc_collisions
@@ -177,9 +180,9 @@ contains
     end subroutine targets
   end subroutine draw_pairs
 
-  !> The rod law on the nc = size(de) pairs (pidx(2p-1), pidx(2p)) of step `step`; pair p's
-  !> impact uniforms are the stream's numbers 2 nc + 3 (p - 1) + 1..3 of that step (the first
-  !> 2 nc drive the pair draw). de(p) = the formula's energy change of pair p [m L^2/t0^2];
+  !> The rod law on the nc = size(de) pairs (pidx(2p-1), pidx(2p)) of step `step`; the block
+  !> of pairs p0..p0+m-1 takes the step's stream numbers 2 nc + 3 (p0 - 1) + 1..3m (the first
+  !> 2 nc drive the pair draw) as m struck-rod choices, m abscissae, m tips (law_rods). de(p) = the formula's energy change of pair p [m L^2/t0^2];
   !> bad = some collided sample left with |v_x| + |v_y| >= v_bound or not finite;
   !> ade, adp = the audit's maxima (relative energy and momentum errors; 0 unless audit).
   subroutine collide_pairs(c, pidx, key, step, audit, v, theta, omega, de, bad, ade, adp)

@@ -45,6 +45,8 @@
 !>   is unstable for alpha L^2 / T > 3 pi / 2.
 !> The interaction energy per sample [m L^2/tau^2]: <W(theta_i)> for the
 !> one-body wells, (1/2) <U(theta_i)> for Onsager (pairs counted once).
+!
+! glibc's vector cos/sin (libmvec; see dsmc_collisions) for the Fourier form and the dipole.
 !GCC$ builtin (cos) attributes simd (notinbranch) if('x86_64')
 !GCC$ builtin (sin) attributes simd (notinbranch) if('x86_64')
 module dsmc_mean_field
