@@ -290,7 +290,7 @@ contains
     self%omega = self%omega0 + self%omega_spread*a
     if (.not. self%rotation) self%omega = 0.0_dp
     self%perm = [(i, i = 1, self%n)]
-    allocate(self%u(max(1_i8, 5*self%nc)), self%de(max(1_i8, self%nc)))
+    allocate(self%u(max(1_i8, 2*self%nc)), self%de(max(1_i8, self%nc)))   ! u: the pair draw
     self%step = 0
     self%n_collisions = 0
     self%e_lost = 0.0_dp
