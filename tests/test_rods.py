@@ -327,3 +327,46 @@ def test_threads_bit_identical(tmp_path: Path, scene: Path, over: dict) -> None:
     for name in ("history.dat", "histograms.dat"):
         assert (tmp_path / "t1" / name).read_bytes() == (tmp_path / "t2" / name).read_bytes()
     assert json.loads((tmp_path / "t2" / "run.json").read_text())["threads"] == 2
+
+
+def _numpy_reference():
+    """bench/rods_numpy_reference.py (the speed anchor of bench/rods_vs_numpy.py) as a module."""
+    import importlib.util
+    import sys
+
+    spec = importlib.util.spec_from_file_location("rods_numpy_reference",
+                                                  ROOT / "bench" / "rods_numpy_reference.py")
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = mod          # dataclasses resolve the module by name
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_numpy_reference_follows_the_engines_law(tmp_path: Path) -> None:
+    """The numpy reference the engine's speed is measured against runs the same method: from
+    Test 1's initial law both relax T_trans - T_rot as the closed form d0 (1 - 3 p c/2)^n of the
+    derived geometry within 5 sigma of the sampling noise, conserve energy and momentum in
+    elastic collisions (E_lost and the totals to round-off), and pair floor(N dt/(2 tau))."""
+    ref = _numpy_reference()
+    n, steps = 50000, 40
+    out = _run(tmp_path, "eng", **{"rods.n": n, "rods.t_end": steps * 0.05,
+                                   "output.history_every": 1, "output.histogram_every": 0})
+    h = rods.history(out)
+    sim = ref.RodsNumpy(n, dt=0.05).two_bumps()
+    assert sim.nc == json.loads((out / "run.json").read_text())["pairs_per_step"]
+    e0 = 0.5 * np.sum(sim.vx**2 + sim.vy**2 + sim.omega**2)
+    p0 = (sim.vx.sum(), sim.vy.sum())
+    d_np = [np.subtract(*sim.temperatures())]
+    for _ in range(steps):
+        sim.step()
+        d_np.append(np.subtract(*sim.temperatures()))
+    c = rods.exchange_coefficient(1.0, 1.0, 1.0)
+    p = rods.pair_fraction(n, 0.05, 1.0)
+    sigma = float(h["T"].iloc[0]) * np.sqrt(3.0 / n)
+    k = np.arange(steps + 1)
+    for d in ((h["T_trans"] - h["T_rot"]).to_numpy(), np.array(d_np)):
+        assert np.all(np.abs(d - rods.exchange_discrete(k, p, c, d[0])) < 5 * sigma)
+        assert d[-1] < 0.75 * d[0]
+    e1 = 0.5 * np.sum(sim.vx**2 + sim.vy**2 + sim.omega**2)
+    assert abs(e1 - e0) < 1e-12 * e0 and abs(sim.e_lost) < 1e-14
+    assert abs(sim.vx.sum() - p0[0]) < 1e-9 and abs(sim.vy.sum() - p0[1]) < 1e-9

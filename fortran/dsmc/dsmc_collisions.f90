@@ -33,10 +33,12 @@
 !> (x the struck one's arm a = s), so a grazing striker (parallel rods) gives a
 !> purely translational kick and a perpendicular one the largest spin.
 !> Orientation of n: the post-collision state depends on n only through
-!> J n and J (r x n), both even in n (J is odd), so the sign of n is free;
-!> it is chosen so that V.n <= 0 (the contact approaches, J >= 0).
+!> J n and J (r x n), both even in n (J is odd), so the sign of n is free,
+!> and so is it for dE below (J g_t, J g_r and J^2 are even): the kernel
+!> leaves n as drawn (J of either sign, no branch); orienting n so that
+!> V.n <= 0 would give J >= 0 and the same bits of every result.
 !>
-!> Checks (tests/test_rods_collisions.py, via the engine's collision audit):
+!> Checks (tests/test_rods.py, via the engine's collision audit):
 !> * elastic (e_v = e_w = 1): total momentum is unchanged (equal and opposite
 !>   impulses) and the energy change
 !>     dE = (1+e_v) J g_t + (1+e_v)^2 J^2/m + (1+e_w) J g_r + (1+e_w)^2 J^2 A/2,
@@ -56,13 +58,33 @@
 !>   (pyorch.rods.exchange_coefficient; measured in tests/test_rods.py).
 !> Point particles (rotation off): arms and spins play no part, K = 2/m and n
 !> is uniform on the circle (Maxwell molecules in 2D: the BKW solution).
+!>
+!> Kernel (collide_pairs): the pairs in blocks of `block`; per block the samples are
+!> gathered into contiguous buffers, the law runs branch-free on them (the struck rod and the
+!> tip chosen by merge; cos and sin in their own loops, which GCC vectorises through glibc's
+!> libmvec), and the results are scattered back. A block's impact uniforms come from the
+!> counter-based stream of dsmc_rng.c at counters fixed by (step, pair): the numbers, hence
+!> the samples, do not depend on the thread count or on the order the blocks are run in.
+!
+! glibc's vector cos/sin (libmvec, linked through libm's AS_NEEDED; at most 4 ulp): GCC calls
+! them for the loops below (8 lanes with -march=native, 2 without). x86_64 glibc only.
+!GCC$ builtin (cos) attributes simd (notinbranch) if('x86_64')
+!GCC$ builtin (sin) attributes simd (notinbranch) if('x86_64')
 module dsmc_collisions
+  use, intrinsic :: iso_c_binding, only: c_int64_t, c_double, c_loc, c_ptr
   use kinds, only: dp, i8, pi
+  use parallel, only: par_min_loop
   implicit none
   private
 
-  public :: collision_t, pair_count, draw_pairs, rod_geometry, point_geometry, collide, &
-       pair_energy, energy_change
+  public :: collision_t, pair_count, draw_pairs, collide_pairs, stream_key, uniforms, &
+       numbers_per_pair
+
+  integer, parameter :: block = 256              !< pairs per block (its buffers fit in L1)
+  integer(i8), parameter :: numbers_per_pair = 5  !< uniforms per pair and step: 2 draw + 3 impact
+  !> A collided pair with |v_x| + |v_y| of a sample at or above this is a runaway (v^4 summed
+  !> over 2e8 samples, M4, stays finite below it).
+  real(dp), parameter :: v_bound = 1.0e60_dp
 
   !> Parameters of the collision law.
   type :: collision_t
@@ -74,6 +96,25 @@ module dsmc_collisions
     logical :: rotation = .true.    !< rods (.true.) or point particles
   end type collision_t
 
+  interface
+    function dsmc_stream_key(seed) result(key) bind(C, name='dsmc_stream_key')
+      import :: c_int64_t
+      integer(c_int64_t), value :: seed
+      integer(c_int64_t) :: key
+    end function dsmc_stream_key
+    subroutine dsmc_uniforms(key, step, per_step, offset, n, u) bind(C, name='dsmc_uniforms')
+      import :: c_int64_t, c_double
+      integer(c_int64_t), value :: key, step, per_step, offset, n
+      real(c_double), intent(out) :: u(*)
+    end subroutine dsmc_uniforms
+    subroutine dsmc_prefetch(m, idx, base, stride) bind(C, name='dsmc_prefetch')
+      import :: c_int64_t, c_ptr
+      integer(c_int64_t), value :: m, stride
+      integer(c_int64_t), intent(in) :: idx(*)
+      type(c_ptr), value :: base
+    end subroutine dsmc_prefetch
+  end interface
+
 contains
 
   !> Babovsky's pair count per step, floor(N dt / (2 tau)) (dt <= tau: at most N/2).
@@ -84,101 +125,240 @@ contains
     nc = min(int(real(n, dp)*dt/(2.0_dp*tau), i8), n/2)
   end function pair_count
 
+  !> Key of the counter-based stream of a scene seed (dsmc_rng.c).
+  function stream_key(seed) result(key)
+    integer(i8), intent(in) :: seed
+    integer(i8) :: key
+    key = dsmc_stream_key(seed)
+  end function stream_key
+
+  !> u(i) = uniform on [0, 1) number step*per_step + offset + i of the stream `key`.
+  subroutine uniforms(key, step, per_step, offset, u)
+    integer(i8), intent(in) :: key, step, per_step, offset
+    real(dp), intent(out) :: u(:)
+    call dsmc_uniforms(key, step, per_step, offset, size(u, kind=i8), u)
+  end subroutine uniforms
+
   !> 2 nc distinct indices of 1..N without replacement: the first 2 nc entries
   !> of `perm` after a partial Fisher-Yates shuffle driven by the uniforms u(1:2nc).
   !> `perm` stays a permutation of 1..N (it is part of the checkpointed state).
-  pure subroutine draw_pairs(perm, u, nc)
-    integer(i8), intent(inout) :: perm(:)
-    real(dp), intent(in) :: u(:)
+  subroutine draw_pairs(perm, u, nc)
+    integer(i8), contiguous, target, intent(inout) :: perm(:)
+    real(dp), contiguous, intent(in) :: u(:)
     integer(i8), intent(in) :: nc
-    integer(i8) :: k, j, n, tmp
+    integer, parameter :: ahead = 64        !< swaps whose targets are prefetched together
+    integer(i8) :: jc(ahead), jn(ahead), k, k0, kn, j, n, tmp
+    integer :: a, mc, mn
     n = size(perm, kind=i8)
-    do k = 1, 2*nc
-      j = k + min(int(u(k)*real(n - k + 1, dp), i8), n - k)
-      tmp = perm(k); perm(k) = perm(j); perm(j) = tmp
+    mn = 0
+    call targets(1_i8, jn, mn)
+    do k0 = 1, 2*nc, ahead
+      jc(1:mn) = jn(1:mn)
+      mc = mn
+      kn = k0 + ahead
+      call targets(kn, jn, mn)               ! the next chunk's targets, in flight meanwhile
+      if (mn > 0) call dsmc_prefetch(int(mn, i8), jn, c_loc(perm(1)), 8_i8)
+      do a = 1, mc
+        k = k0 + a - 1
+        j = jc(a)
+        tmp = perm(k); perm(k) = perm(j); perm(j) = tmp
+      end do
     end do
+  contains
+    !> j(1:mm) of the swaps k0.. (at most `ahead`, up to 2 nc): k + floor(u(k) (n - k + 1)).
+    subroutine targets(k0, j, mm)
+      integer(i8), intent(in) :: k0
+      integer(i8), intent(out) :: j(ahead)
+      integer, intent(out) :: mm
+      integer :: b
+      integer(i8) :: k
+      mm = int(max(0_i8, min(int(ahead, i8), 2*nc - k0 + 1)))
+      do b = 1, mm
+        k = k0 + b - 1
+        j(b) = k + min(int(u(k)*real(n - k + 1, dp), i8), n - k)
+      end do
+    end subroutine targets
   end subroutine draw_pairs
 
-  !> Impact parameters of a rod-rod contact from three uniforms (see header):
-  !> arms r1, r2 [L] and the (unoriented) normal n of the struck rod.
-  pure subroutine rod_geometry(th1, th2, length, u, r1, r2, n)
-    real(dp), intent(in) :: th1, th2, length, u(3)
-    real(dp), intent(out) :: r1(2), r2(2), n(2)
-    real(dp) :: s, sig, e1(2), e2(2)
-    e1 = [cos(th1), sin(th1)]
-    e2 = [cos(th2), sin(th2)]
-    s = (u(2) - 0.5_dp)*length
-    sig = merge(0.5_dp, -0.5_dp, u(3) < 0.5_dp)*length
-    if (u(1) < 0.5_dp) then        ! rod 1 struck on its side by a tip of rod 2
-      n = [-e1(2), e1(1)]
-      r1 = s*e1
-      r2 = sig*e2
-    else                           ! rod 2 struck by a tip of rod 1
-      n = [-e2(2), e2(1)]
-      r2 = s*e2
-      r1 = sig*e1
-    end if
-  end subroutine rod_geometry
-
-  !> Point particles: no arms, normal uniform on the circle.
-  pure subroutine point_geometry(u, r1, r2, n)
-    real(dp), intent(in) :: u
-    real(dp), intent(out) :: r1(2), r2(2), n(2)
-    r1 = 0.0_dp
-    r2 = 0.0_dp
-    n = [cos(2.0_dp*pi*u), sin(2.0_dp*pi*u)]
-  end subroutine point_geometry
-
-  !> The collision law on one pair; jimp = J >= 0 [m L/tau] (n oriented so that V.n <= 0),
-  !> gt, gr = the translational and rotational parts of V.n before the collision.
-  pure subroutine collide(c, v1, w1, v2, w2, r1, r2, n_in, jimp, gt, gr, kk)
+  !> The rod law on the nc = size(de) pairs (pidx(2p-1), pidx(2p)) of step `step`; the block
+  !> of pairs p0..p0+m-1 takes the step's stream numbers 2 nc + 3 (p0 - 1) + 1..3m (the first
+  !> 2 nc drive the pair draw) as m struck-rod choices, m abscissae, m tips (law_rods). de(p) = the formula's energy change of pair p [m L^2/t0^2];
+  !> bad = some collided sample left with |v_x| + |v_y| >= v_bound or not finite;
+  !> ade, adp = the audit's maxima (relative energy and momentum errors; 0 unless audit).
+  subroutine collide_pairs(c, pidx, key, step, audit, v, theta, omega, de, bad, ade, adp)
     type(collision_t), intent(in) :: c
-    real(dp), intent(inout) :: v1(2), w1, v2(2), w2
-    real(dp), intent(in) :: r1(2), r2(2), n_in(2)
-    real(dp), intent(out) :: jimp, gt, gr, kk
-    real(dp) :: n(2), a1, a2, pv, pw
-    n = n_in
-    a1 = r1(1)*n(2) - r1(2)*n(1)
-    a2 = r2(1)*n(2) - r2(2)*n(1)
-    gt = (v2(1) - v1(1))*n(1) + (v2(2) - v1(2))*n(2)
-    gr = 0.0_dp
-    kk = 2.0_dp/c%m
-    if (c%rotation) then
-      gr = w2*a2 - w1*a1
-      kk = kk + (a1*a1 + a2*a2)/c%inertia
-    end if
-    if (gt + gr > 0.0_dp) then     ! orient n for approach (the law is even in n)
-      n = -n; a1 = -a1; a2 = -a2; gt = -gt; gr = -gr
-    end if
-    jimp = -(gt + gr)/kk
-    pv = (1.0_dp + c%e_v)*jimp/c%m
-    v1 = v1 - pv*n
-    v2 = v2 + pv*n
-    if (c%rotation) then
-      pw = (1.0_dp + c%e_w)*jimp/c%inertia
-      w1 = w1 - pw*a1
-      w2 = w2 + pw*a2
-    end if
-  end subroutine collide
+    integer(i8), contiguous, intent(in) :: pidx(:)
+    integer(i8), intent(in) :: key, step
+    logical, intent(in) :: audit
+    real(dp), contiguous, target, intent(inout) :: v(:, :), omega(:)
+    real(dp), contiguous, target, intent(in) :: theta(:)
+    real(dp), intent(out) :: de(:)
+    logical, intent(out) :: bad
+    real(dp), intent(out) :: ade, adp
+    integer(i8) :: nc, nb, b, p0, m, q0, q1
+    nc = size(de, kind=i8)
+    nb = (nc + block - 1)/block
+    bad = .false.
+    ade = 0.0_dp
+    adp = 0.0_dp
+    !$omp parallel do schedule(static) if(nc >= par_min_loop) default(shared) &
+    !$omp private(p0, m, q0, q1) reduction(.or.: bad) reduction(max: ade, adp)
+    do b = 1, nb
+      p0 = (b - 1)*block + 1
+      m = min(int(block, i8), nc - p0 + 1)
+      if (b < nb) then       ! the next block's samples, in flight while this one computes
+        q0 = 2*(p0 + m) - 1
+        q1 = min(2*nc, q0 + 2*block - 1)
+        call dsmc_prefetch(q1 - q0 + 1, pidx(q0:q1), c_loc(v(1, 1)), 16_i8)
+        call dsmc_prefetch(q1 - q0 + 1, pidx(q0:q1), c_loc(theta(1)), 8_i8)
+        call dsmc_prefetch(q1 - q0 + 1, pidx(q0:q1), c_loc(omega(1)), 8_i8)
+      end if
+      call collide_block(c, pidx(2*p0 - 1:2*(p0 + m - 1)), key, step, &
+           numbers_per_pair*nc, 2*nc + 3*(p0 - 1), audit, v, theta, omega, de(p0:p0 + m - 1), &
+           bad, ade, adp)
+    end do
+    !$omp end parallel do
+  end subroutine collide_pairs
 
-  !> Kinetic energy of a pair [m L^2/tau^2].
-  pure function pair_energy(c, v1, w1, v2, w2) result(e)
+  !> One block of m <= block pairs: gather, the law, scatter (and the audit); bad, ade, adp
+  !> are updated (or, max, max).
+  subroutine collide_block(c, idx, key, step, per_step, offset, audit, v, theta, omega, de, &
+       bad, ade, adp)
     type(collision_t), intent(in) :: c
-    real(dp), intent(in) :: v1(2), w1, v2(2), w2
+    integer(i8), contiguous, intent(in) :: idx(:)
+    integer(i8), intent(in) :: key, step, per_step, offset
+    logical, intent(in) :: audit
+    real(dp), contiguous, intent(inout) :: v(:, :), omega(:)
+    real(dp), contiguous, intent(in) :: theta(:)
+    real(dp), intent(out) :: de(:)
+    logical, intent(inout) :: bad
+    real(dp), intent(inout) :: ade, adp
+    integer(i8) :: i1(block), i2(block)
+    real(dp) :: x1(block), y1(block), w1(block), t1(block), x2(block), y2(block), w2(block), &
+         t2(block), u(3*block), e0(block), px(block), py(block), sc(block), q
+    integer :: b, m
+    m = size(de)
+    call uniforms(key, step, per_step, offset, u(1:3*m))
+    do b = 1, m
+      i1(b) = idx(2*b - 1)
+      i2(b) = idx(2*b)
+    end do
+    do b = 1, m
+      x1(b) = v(1, i1(b)); y1(b) = v(2, i1(b)); w1(b) = omega(i1(b)); t1(b) = theta(i1(b))
+      x2(b) = v(1, i2(b)); y2(b) = v(2, i2(b)); w2(b) = omega(i2(b)); t2(b) = theta(i2(b))
+    end do
+    if (audit) then
+      e0(1:m) = pair_energy(c, x1(1:m), y1(1:m), w1(1:m), x2(1:m), y2(1:m), w2(1:m))
+      px(1:m) = x1(1:m) + x2(1:m)
+      py(1:m) = y1(1:m) + y2(1:m)
+      sc(1:m) = sqrt(x1(1:m)**2 + y1(1:m)**2) + sqrt(x2(1:m)**2 + y2(1:m)**2)
+    end if
+    if (c%rotation) then
+      call law_rods(c, m, u, t1, t2, x1, y1, w1, x2, y2, w2, de)
+    else
+      call law_points(c, m, u, x1, y1, x2, y2, de)
+    end if
+    !$omp simd reduction(.or.: bad)
+    do b = 1, m
+      q = abs(x1(b)) + abs(y1(b)) + abs(x2(b)) + abs(y2(b))
+      bad = bad .or. .not. (q < v_bound)
+    end do
+    do b = 1, m
+      v(1, i1(b)) = x1(b); v(2, i1(b)) = y1(b); omega(i1(b)) = w1(b)
+      v(1, i2(b)) = x2(b); v(2, i2(b)) = y2(b); omega(i2(b)) = w2(b)
+    end do
+    if (audit) then
+      ade = max(ade, maxval(abs(pair_energy(c, x1(1:m), y1(1:m), w1(1:m), x2(1:m), y2(1:m), &
+           w2(1:m)) - e0(1:m) - de(1:m))/max(e0(1:m), tiny(1.0_dp))))
+      adp = max(adp, maxval(sqrt((x1(1:m) + x2(1:m) - px(1:m))**2 + &
+           (y1(1:m) + y2(1:m) - py(1:m))**2)/max(sc(1:m), tiny(1.0_dp))))
+    end if
+  end subroutine collide_block
+
+  !> The rod law (header) on m gathered pairs, branch-free. u(1:m) picks the struck rod (rod 1
+  !> if < 1/2), u(m+1:2m) the contact abscissa s = (u - 1/2) L on it, u(2m+1:3m) the striker's
+  !> tip sigma = +-L/2. Struck rod k: n = e_perp(theta_k), its arm's moment a_k = s, the
+  !> striker's a = sigma cos(theta_1 - theta_2); K = 2/m + (a_1^2 + a_2^2)/I, J = -V.n/K.
+  pure subroutine law_rods(c, m, u, t1, t2, x1, y1, w1, x2, y2, w2, de)
+    type(collision_t), intent(in) :: c
+    integer, intent(in) :: m
+    real(dp), intent(in) :: u(:), t1(:), t2(:)
+    real(dp), intent(inout) :: x1(:), y1(:), w1(:), x2(:), y2(:), w2(:)
+    real(dp), intent(out) :: de(:)
+    real(dp) :: c1(block), s1(block), c2(block), s2(block)
+    real(dp) :: nx, ny, s, sig, cd, a1, a2, gt, gr, ak, jimp, pv, pw, fv, fw
+    logical :: first
+    integer :: b
+    do b = 1, m       ! one function per loop: GCC fuses cos and sin of one argument into a
+      c1(b) = cos(t1(b))      ! scalar sincos call, which has no vector variant
+    end do
+    do b = 1, m
+      s1(b) = sin(t1(b))
+    end do
+    do b = 1, m
+      c2(b) = cos(t2(b))
+    end do
+    do b = 1, m
+      s2(b) = sin(t2(b))
+    end do
+    fv = 1.0_dp + c%e_v
+    fw = 1.0_dp + c%e_w
+    do b = 1, m
+      first = u(b) < 0.5_dp
+      s = (u(m + b) - 0.5_dp)*c%length
+      sig = merge(0.5_dp, -0.5_dp, u(2*m + b) < 0.5_dp)*c%length
+      cd = c1(b)*c2(b) + s1(b)*s2(b)
+      nx = merge(-s1(b), -s2(b), first)
+      ny = merge(c1(b), c2(b), first)
+      a1 = merge(s, sig*cd, first)
+      a2 = merge(sig*cd, s, first)
+      gt = (x2(b) - x1(b))*nx + (y2(b) - y1(b))*ny
+      gr = w2(b)*a2 - w1(b)*a1
+      ak = (a1*a1 + a2*a2)/c%inertia
+      jimp = -(gt + gr)/(2.0_dp/c%m + ak)
+      pv = fv*jimp/c%m
+      pw = fw*jimp/c%inertia
+      x1(b) = x1(b) - pv*nx; y1(b) = y1(b) - pv*ny
+      x2(b) = x2(b) + pv*nx; y2(b) = y2(b) + pv*ny
+      w1(b) = w1(b) - pw*a1
+      w2(b) = w2(b) + pw*a2
+      de(b) = fv*jimp*gt + fv*fv*jimp*jimp/c%m + fw*jimp*gr + 0.5_dp*fw*fw*jimp*jimp*ak
+    end do
+  end subroutine law_rods
+
+  !> Point particles: no arms, n = (cos 2 pi u, sin 2 pi u) with u = u(1:m), K = 2/m.
+  pure subroutine law_points(c, m, u, x1, y1, x2, y2, de)
+    type(collision_t), intent(in) :: c
+    integer, intent(in) :: m
+    real(dp), intent(in) :: u(:)
+    real(dp), intent(inout) :: x1(:), y1(:), x2(:), y2(:)
+    real(dp), intent(out) :: de(:)
+    real(dp) :: nx(block), ny(block), gt, jimp, pv, fv
+    integer :: b
+    do b = 1, m
+      nx(b) = cos(2.0_dp*pi*u(b))
+    end do
+    do b = 1, m
+      ny(b) = sin(2.0_dp*pi*u(b))
+    end do
+    fv = 1.0_dp + c%e_v
+    do b = 1, m
+      gt = (x2(b) - x1(b))*nx(b) + (y2(b) - y1(b))*ny(b)
+      jimp = -gt/(2.0_dp/c%m)
+      pv = fv*jimp/c%m
+      x1(b) = x1(b) - pv*nx(b); y1(b) = y1(b) - pv*ny(b)
+      x2(b) = x2(b) + pv*nx(b); y2(b) = y2(b) + pv*ny(b)
+      de(b) = fv*jimp*gt + fv*fv*jimp*jimp/c%m
+    end do
+  end subroutine law_points
+
+  !> Kinetic energy of pairs [m L^2/t0^2].
+  elemental function pair_energy(c, x1, y1, w1, x2, y2, w2) result(e)
+    type(collision_t), intent(in) :: c
+    real(dp), intent(in) :: x1, y1, w1, x2, y2, w2
     real(dp) :: e
-    e = 0.5_dp*c%m*(sum(v1**2) + sum(v2**2))
+    e = 0.5_dp*c%m*(x1*x1 + y1*y1 + x2*x2 + y2*y2)
     if (c%rotation) e = e + 0.5_dp*c%inertia*(w1*w1 + w2*w2)
   end function pair_energy
-
-  !> The energy change of a collision from its pre-collision J, g_t, g_r, K
-  !> (header): dE = (1+e_v) J g_t + (1+e_v)^2 J^2/m + (1+e_w) J g_r + (1+e_w)^2 J^2 A/2.
-  pure function energy_change(c, jimp, gt, gr, kk) result(de)
-    type(collision_t), intent(in) :: c
-    real(dp), intent(in) :: jimp, gt, gr, kk
-    real(dp) :: de, a
-    a = kk - 2.0_dp/c%m
-    de = (1.0_dp + c%e_v)*jimp*gt + (1.0_dp + c%e_v)**2*jimp**2/c%m
-    if (c%rotation) de = de + (1.0_dp + c%e_w)*jimp*gr + 0.5_dp*(1.0_dp + c%e_w)**2*jimp**2*a
-  end function energy_change
 
 end module dsmc_collisions

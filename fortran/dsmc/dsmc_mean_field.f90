@@ -45,6 +45,10 @@
 !>   is unstable for alpha L^2 / T > 3 pi / 2.
 !> The interaction energy per sample [m L^2/tau^2]: <W(theta_i)> for the
 !> one-body wells, (1/2) <U(theta_i)> for Onsager (pairs counted once).
+!
+! glibc's vector cos/sin (libmvec; see dsmc_collisions) for the Fourier form and the dipole.
+!GCC$ builtin (cos) attributes simd (notinbranch) if('x86_64')
+!GCC$ builtin (sin) attributes simd (notinbranch) if('x86_64')
 module dsmc_mean_field
   use kinds, only: dp, i8, pi
   use parallel, only: par_min_loop
@@ -54,6 +58,7 @@ module dsmc_mean_field
   public :: field_t, transport, interaction_energy, onsager_modes, onsager_coefficient
 
   integer, parameter :: chunk = 256   !< samples per vectorised block of the Fourier form
+  integer(i8), parameter :: span = 16384   !< samples per chunk of the transport's loops
 
   type :: field_t
     character(len=16) :: potential = 'none'   !< none | quadratic | dipole | onsager
@@ -89,50 +94,91 @@ contains
     call modes_of(c2, s2, kmax, ck, sk)
   end subroutine onsager_modes
 
-  !> The same from z = e^{2 i theta} = c2 + i s2.
+  !> The same from z = e^{2 i theta} = c2 + i s2. Partial sums per span of samples (on the
+  !> threads), added in span order: the same bits for any thread count.
   subroutine modes_of(c2, s2, kmax, ck, sk)
-    real(dp), intent(in) :: c2(:), s2(:)
+    real(dp), contiguous, intent(in) :: c2(:), s2(:)
     integer, intent(in) :: kmax
     real(dp), intent(out) :: ck(kmax), sk(kmax)
-    real(dp) :: zr(chunk), zi(chunk), pr(chunk), pi_(chunk), tmp(chunk)
-    integer(i8) :: i0, n
-    integer :: k, m
+    real(dp), allocatable :: part(:, :, :)
+    integer(i8) :: c, n, ns, k0, k1
     n = size(c2, kind=i8)
+    ns = (n + span - 1)/span
+    allocate(part(kmax, 2, ns))
+    !$omp parallel do schedule(static) if(n >= par_min_loop) private(k0, k1)
+    do c = 1, ns
+      k0 = (c - 1)*span + 1
+      k1 = min(n, c*span)
+      call span_modes(k1 - k0 + 1, c2(k0:k1), s2(k0:k1), kmax, part(:, 1, c), part(:, 2, c))
+    end do
+    !$omp end parallel do
     ck = 0.0_dp
     sk = 0.0_dp
-    do i0 = 1, n, chunk
-      m = int(min(int(chunk, i8), n - i0 + 1))
-      zr(1:m) = c2(i0:i0 + m - 1)
-      zi(1:m) = s2(i0:i0 + m - 1)
-      pr(1:m) = zr(1:m)
-      pi_(1:m) = zi(1:m)
-      do k = 1, kmax
-        ck(k) = ck(k) + sum(pr(1:m))
-        sk(k) = sk(k) + sum(pi_(1:m))
-        tmp(1:m) = pr(1:m)*zr(1:m) - pi_(1:m)*zi(1:m)
-        pi_(1:m) = pr(1:m)*zi(1:m) + pi_(1:m)*zr(1:m)
-        pr(1:m) = tmp(1:m)
-      end do
+    do c = 1, ns
+      ck = ck + part(:, 1, c)
+      sk = sk + part(:, 2, c)
     end do
     ck = ck/real(n, dp)
     sk = sk/real(n, dp)
   end subroutine modes_of
 
-  !> One transport step of all samples (semi-implicit Euler, header).
-  subroutine transport(f, dt, theta, omega)
+  !> sum z^k (real and imaginary parts), k = 1..kmax, over the n samples of one span, by chunks
+  !> (the powers of a chunk stay in L1; the sums are vectorised reductions).
+  pure subroutine span_modes(n, c2, s2, kmax, ck, sk)
+    integer(i8), intent(in) :: n
+    real(dp), intent(in) :: c2(n), s2(n)
+    integer, intent(in) :: kmax
+    real(dp), intent(out) :: ck(kmax), sk(kmax)
+    real(dp) :: zr(chunk), zi(chunk), pr(chunk), pi_(chunk), tmp, sc, ss
+    integer(i8) :: i0
+    integer :: k, m, b
+    ck = 0.0_dp
+    sk = 0.0_dp
+    do i0 = 1, n, chunk
+      m = int(min(int(chunk, i8), n - i0 + 1))
+      do b = 1, m
+        zr(b) = c2(i0 + b - 1)
+        zi(b) = s2(i0 + b - 1)
+        pr(b) = zr(b)
+        pi_(b) = zi(b)
+      end do
+      do k = 1, kmax
+        sc = 0.0_dp
+        ss = 0.0_dp
+        !$omp simd reduction(+: sc, ss) private(tmp)
+        do b = 1, m
+          sc = sc + pr(b)
+          ss = ss + pi_(b)
+          tmp = pr(b)*zr(b) - pi_(b)*zi(b)
+          pi_(b) = pr(b)*zi(b) + pi_(b)*zr(b)
+          pr(b) = tmp
+        end do
+        ck(k) = ck(k) + sc
+        sk(k) = sk(k) + ss
+      end do
+    end do
+  end subroutine span_modes
+
+  !> One transport step of all samples (semi-implicit Euler, header), and the guard's sums of
+  !> the new state from the same pass: absum = sum |theta| + |omega| (NaN and Inf propagate
+  !> into it), thmax = max |theta| [rad]. The one-body wells kick and drift in one loop; the
+  !> loops run by chunks of `span` samples (on the threads), each a vectorised kernel.
+  subroutine transport(f, dt, theta, omega, absum, thmax)
     type(field_t), intent(in) :: f
     real(dp), intent(in) :: dt
-    real(dp), intent(inout) :: theta(:), omega(:)
+    real(dp), contiguous, intent(inout) :: theta(:), omega(:)
+    real(dp), intent(out) :: absum, thmax
+    real(dp) :: g, damp, s, tm
+    integer(i8) :: c, k0, k1, n
+    integer :: form
+    n = size(theta, kind=i8)
     select case (trim(f%potential))
-    case ('none')
-      theta = theta + dt*omega
     case ('quadratic')
-      omega = (omega - dt*(f%alpha/f%inertia)*(theta - f%theta_hat))/(1.0_dp + dt*f%beta)
-      theta = theta + dt*omega
+      form = 1
     case ('dipole')
-      omega = omega - dt*(f%alpha/f%inertia)*cos(theta - f%theta_hat)
-      theta = theta + dt*omega
+      form = 2
     case ('onsager')
+      form = 0
       select case (trim(f%force))
       case ('exact')
         call kick_onsager_exact(f, dt, theta, omega)
@@ -141,9 +187,87 @@ contains
       case default
         call kick_onsager_fourier(f, dt, theta, omega)
       end select
-      theta = theta + dt*omega
+    case default
+      form = 0
     end select
+    g = dt*(f%alpha/f%inertia)
+    damp = 1.0_dp + dt*f%beta
+    absum = 0.0_dp
+    thmax = 0.0_dp
+    !$omp parallel do schedule(static) if(n >= par_min_loop) private(k0, k1, s, tm) &
+    !$omp reduction(+: absum) reduction(max: thmax)
+    do c = 1, (n + span - 1)/span
+      k0 = (c - 1)*span + 1
+      k1 = min(n, c*span)
+      select case (form)
+      case (1)
+        call step_quadratic(k1 - k0 + 1, dt, g, f%theta_hat, damp, theta(k0:k1), omega(k0:k1), &
+             s, tm)
+      case (2)
+        call step_dipole(k1 - k0 + 1, dt, g, f%theta_hat, theta(k0:k1), omega(k0:k1), s, tm)
+      case default
+        call drift(k1 - k0 + 1, dt, theta(k0:k1), omega(k0:k1), s, tm)
+      end select
+      absum = absum + s
+      thmax = max(thmax, tm)
+    end do
+    !$omp end parallel do
   end subroutine transport
+
+  !> theta += dt omega on n samples; s = sum |theta| + |omega|, tm = max |theta| after.
+  pure subroutine drift(n, dt, theta, omega, s, tm)
+    integer(i8), intent(in) :: n
+    real(dp), intent(in) :: dt
+    real(dp), intent(inout) :: theta(n)
+    real(dp), intent(in) :: omega(n)
+    real(dp), intent(out) :: s, tm
+    integer(i8) :: k
+    s = 0.0_dp
+    tm = 0.0_dp
+    !$omp simd reduction(+: s) reduction(max: tm)
+    do k = 1, n
+      theta(k) = theta(k) + dt*omega(k)
+      s = s + abs(theta(k)) + abs(omega(k))
+      tm = max(tm, abs(theta(k)))
+    end do
+  end subroutine drift
+
+  !> 'quadratic': omega = (omega - g (theta - theta_hat))/damp, g = dt alpha/I,
+  !> damp = 1 + dt beta, then the drift; s, tm as in drift.
+  pure subroutine step_quadratic(n, dt, g, theta_hat, damp, theta, omega, s, tm)
+    integer(i8), intent(in) :: n
+    real(dp), intent(in) :: dt, g, theta_hat, damp
+    real(dp), intent(inout) :: theta(n), omega(n)
+    real(dp), intent(out) :: s, tm
+    integer(i8) :: k
+    s = 0.0_dp
+    tm = 0.0_dp
+    !$omp simd reduction(+: s) reduction(max: tm)
+    do k = 1, n
+      omega(k) = (omega(k) - g*(theta(k) - theta_hat))/damp
+      theta(k) = theta(k) + dt*omega(k)
+      s = s + abs(theta(k)) + abs(omega(k))
+      tm = max(tm, abs(theta(k)))
+    end do
+  end subroutine step_quadratic
+
+  !> 'dipole': omega -= g cos(theta - theta_hat), g = dt alpha/I, then the drift.
+  pure subroutine step_dipole(n, dt, g, theta_hat, theta, omega, s, tm)
+    integer(i8), intent(in) :: n
+    real(dp), intent(in) :: dt, g, theta_hat
+    real(dp), intent(inout) :: theta(n), omega(n)
+    real(dp), intent(out) :: s, tm
+    integer(i8) :: k
+    s = 0.0_dp
+    tm = 0.0_dp
+    !$omp simd reduction(+: s) reduction(max: tm)
+    do k = 1, n
+      omega(k) = omega(k) - g*cos(theta(k) - theta_hat)
+      theta(k) = theta(k) + dt*omega(k)
+      s = s + abs(theta(k)) + abs(omega(k))
+      tm = max(tm, abs(theta(k)))
+    end do
+  end subroutine step_dipole
 
   !> omega += dt F, F_i = -(alpha L^2/I) (1/N) sum_j sign(sin(th_i - th_j)) cos(th_i - th_j).
   subroutine kick_onsager_exact(f, dt, theta, omega)
@@ -176,13 +300,13 @@ contains
   subroutine kick_onsager_fourier(f, dt, theta, omega)
     type(field_t), intent(in) :: f
     real(dp), intent(in) :: dt
-    real(dp), intent(in) :: theta(:)
-    real(dp), intent(inout) :: omega(:)
+    real(dp), contiguous, intent(in) :: theta(:)
+    real(dp), contiguous, intent(inout) :: omega(:)
     real(dp) :: ck(f%modes), sk(f%modes), br(f%modes), bi(f%modes), g
-    real(dp) :: zr(chunk), zi(chunk), pr(chunk), pi_(chunk), tmp(chunk), acc(chunk)
+    real(dp) :: pr(chunk), pi_(chunk), acc(chunk), tmp
     real(dp), allocatable :: c2(:), s2(:)
     integer(i8) :: i0, n
-    integer :: k, m
+    integer :: k, m, b
     allocate(c2(size(theta)), s2(size(theta)))
     c2 = cos(2.0_dp*theta)
     s2 = sin(2.0_dp*theta)
@@ -194,21 +318,25 @@ contains
     g = dt*f%alpha*f%length**2/f%inertia
     n = size(theta, kind=i8)
     !$omp parallel do schedule(static) if(n >= par_min_loop) &
-    !$omp private(m, k, zr, zi, pr, pi_, tmp, acc)
+    !$omp private(m, k, b, pr, pi_, tmp, acc)
     do i0 = 1, n, chunk
       m = int(min(int(chunk, i8), n - i0 + 1))
-      zr(1:m) = c2(i0:i0 + m - 1)
-      zi(1:m) = s2(i0:i0 + m - 1)
-      pr(1:m) = zr(1:m)
-      pi_(1:m) = zi(1:m)
-      acc(1:m) = 0.0_dp
-      do k = 1, f%modes
-        acc(1:m) = acc(1:m) + br(k)*pr(1:m) - bi(k)*pi_(1:m)
-        tmp(1:m) = pr(1:m)*zr(1:m) - pi_(1:m)*zi(1:m)
-        pi_(1:m) = pr(1:m)*zi(1:m) + pi_(1:m)*zr(1:m)
-        pr(1:m) = tmp(1:m)
+      do b = 1, m
+        pr(b) = c2(i0 + b - 1)
+        pi_(b) = s2(i0 + b - 1)
+        acc(b) = 0.0_dp
       end do
-      omega(i0:i0 + m - 1) = omega(i0:i0 + m - 1) - g*acc(1:m)
+      do k = 1, f%modes
+        do b = 1, m
+          acc(b) = acc(b) + br(k)*pr(b) - bi(k)*pi_(b)
+          tmp = pr(b)*c2(i0 + b - 1) - pi_(b)*s2(i0 + b - 1)
+          pi_(b) = pr(b)*s2(i0 + b - 1) + pi_(b)*c2(i0 + b - 1)
+          pr(b) = tmp
+        end do
+      end do
+      do b = 1, m
+        omega(i0 + b - 1) = omega(i0 + b - 1) - g*acc(b)
+      end do
     end do
     !$omp end parallel do
   end subroutine kick_onsager_fourier

@@ -8,11 +8,12 @@
 !>      (needs dt <= tau: larger steps are refused).
 !> f^{n+1} = Q_dt(T_dt(f^n)). Units: mass m (a sample's), length L (a rod's),
 !> time t0 of the scene (tau and dt are in t0); energies m L^2/t0^2.
-!> Random numbers: the intrinsic random_number seeded from &rods seed; the
-!> generator's state and the pair permutation are in the checkpoint, so a
-!> resumed run is bit-identical to an uninterrupted one. OpenMP: the pair loop (all random
-!> numbers drawn on one thread beforehand, pairs disjoint) and the Onsager kicks, so the
-!> samples are the same bits for any thread count.
+!> Random numbers: the initial samples from the intrinsic random_number seeded from
+!> &rods seed; the collisions from a counter-based stream of the same seed (SplitMix64,
+!> dsmc_rng.c), whose numbers are a function of (step, pair) only. The pair permutation is in
+!> the checkpoint, so a resumed run is bit-identical to an uninterrupted one. OpenMP: the
+!> transport, the pair kernel (pairs disjoint, each block draws its own numbers by counter) and
+!> the Onsager kicks, so the samples are the same bits for any thread count.
 module dsmc_rods
   use kinds, only: dp, i8, pi
   use errors, only: status_t, set_error, exit_bad_input, exit_io, exit_numerical
@@ -22,11 +23,10 @@ module dsmc_rods
   use, intrinsic :: iso_fortran_env, only: int8
   use scene_input, only: kind_len, int_str, real_str
   use schema, only: schema_t, max_steps_all
-  use dsmc_collisions, only: collision_t, pair_count, draw_pairs, rod_geometry, point_geometry, &
-       collide, pair_energy, energy_change
+  use dsmc_collisions, only: collision_t, pair_count, draw_pairs, collide_pairs, stream_key, &
+       uniforms, numbers_per_pair
   use dsmc_mean_field, only: field_t, transport, interaction_energy
   use dsmc_moments, only: moments_t, sample_moments, h_estimate, histogram, wrap_angle
-  use parallel, only: par_min_loop
   implicit none
   private
 
@@ -264,7 +264,7 @@ contains
     self%omega = self%omega0 + self%omega_spread*a
     if (.not. self%rotation) self%omega = 0.0_dp
     self%perm = [(i, i = 1, self%n)]
-    allocate(self%u(max(1_i8, 5*self%nc)), self%de(max(1_i8, self%nc)))
+    allocate(self%u(max(1_i8, 2*self%nc)), self%de(max(1_i8, self%nc)))   ! u: the pair draw
     self%step = 0
     self%n_collisions = 0
     self%e_lost = 0.0_dp
@@ -364,85 +364,51 @@ contains
   subroutine advance(self, st)
     class(rods_t), intent(inout) :: self
     type(status_t), intent(inout) :: st
+    real(dp) :: absum, thmax
+    logical :: vbad
     call write_rows(self, .false., st)
     if (st%code /= 0) return
-    call transport(self%field, self%dt, self%theta, self%omega)
-    if (self%nc > 0) call collision_step(self)
+    call transport(self%field, self%dt, self%theta, self%omega, absum, thmax)
+    vbad = .false.
+    if (self%nc > 0) call collision_step(self, vbad)
     self%step = self%step + 1
-    ! sum of |values|: NaN and Inf propagate into it, and below runaway_bound every value and
-    ! every square in the moments stays far from overflow (a row is never written with Inf/NaN)
-    if (.not. (sum(abs(self%v)) + sum(abs(self%theta)) + sum(abs(self%omega)) < runaway_bound)) then
-      call set_error(st, exit_numerical, 'rods: non-finite sample (or sum of |v|, |theta|, '// &
-           '|omega| above 1e100) at step '// &
+    ! sum of |theta|, |omega| (from the transport's pass; NaN and Inf propagate into it) and the
+    ! collided velocities (v changes only in collisions): below the bounds every value and every
+    ! power in the moments stays far from overflow (a row is never written with Inf/NaN)
+    if (.not. (absum < runaway_bound) .or. vbad) then
+      call set_error(st, exit_numerical, 'rods: non-finite sample (or sum of |theta|, '// &
+           '|omega| above 1e100, or a collided |v_x| + |v_y| above 1e60) at step '// &
            int_str(self%step)//' (dt = '//real_str(self%dt)//' t0, &mean_field potential = '// &
            trim(self%field%potential)//'): explicit transport unstable, reduce dt')
     else if (trim(self%field%potential) == 'onsager') then
-      if (maxval(abs(self%theta)) >= 1.0e15_dp) call set_error(st, exit_numerical, &
+      if (thmax >= 1.0e15_dp) call set_error(st, exit_numerical, &
            'rods: |theta| above 1e15 rad at step '//int_str(self%step)// &
            ': theta mod pi has no digits left for the Onsager field')
     end if
   end subroutine advance
 
-  !> Nanbu-Babovsky: nc disjoint pairs without replacement, the rod law on each. The random
-  !> numbers (pair draw and impact parameters) are drawn on one thread before the pairs are
-  !> processed, and the pairs are disjoint: the samples are bit-identical for any thread count.
+  !> Nanbu-Babovsky: nc disjoint pairs without replacement, the rod law on each. Step s uses
+  !> the numbers s*5nc + 1 .. (s+1)*5nc of the counter-based stream of the scene seed (the pair
+  !> draw the first 2 nc, on one thread; the pairs' impact parameters the rest, drawn by the
+  !> blocks of the pair kernel where they run): the samples are bit-identical for any thread
+  !> count, and a checkpoint needs only the step and the permutation to resume them.
   !> The lost energy is summed from a per-pair buffer in pair order (same bits too).
-  subroutine collision_step(self)
+  subroutine collision_step(self, vbad)
     class(rods_t), intent(inout) :: self
-    integer(i8) :: nc
+    logical, intent(out) :: vbad
+    integer(i8) :: nc, key
     real(dp) :: ade, adp
     nc = self%nc
-    call random_number(self%u(1:5*nc))
+    key = stream_key(self%seed)
+    call uniforms(key, self%step, numbers_per_pair*nc, 0_i8, self%u(1:2*nc))
     call draw_pairs(self%perm, self%u(1:2*nc), nc)
-    call collide_pairs(self%law, self%collision_audit, self%perm(1:2*nc), self%u(2*nc + 1:5*nc), &
-         self%v, self%theta, self%omega, self%de(1:nc), ade, adp)
+    call collide_pairs(self%law, self%perm(1:2*nc), key, self%step, self%collision_audit, &
+         self%v, self%theta, self%omega, self%de(1:nc), vbad, ade, adp)
     self%e_lost = self%e_lost - sum(self%de(1:nc))/real(self%n, dp)
     self%audit_de = max(self%audit_de, ade)
     self%audit_dp = max(self%audit_dp, adp)
     self%n_collisions = self%n_collisions + nc
   end subroutine collision_step
-
-  !> The rod law on the pairs (pidx(2p-1), pidx(2p)) with impact uniforms ug(3p-2:3p);
-  !> de(p) = the formula's energy change; ade, adp = the audit's maxima (0 unless audit).
-  subroutine collide_pairs(law, audit, pidx, ug, v, theta, omega, de, ade, adp)
-    type(collision_t), intent(in) :: law
-    logical, intent(in) :: audit
-    integer(i8), intent(in) :: pidx(:)
-    real(dp), intent(in) :: ug(:), theta(:)
-    real(dp), intent(inout) :: v(:, :), omega(:)
-    real(dp), intent(out) :: de(:), ade, adp
-    integer(i8) :: p, i, j, nc
-    real(dp) :: r1(2), r2(2), n(2), jimp, gt, gr, kk, e0, p0(2), scale
-    nc = size(de, kind=i8)
-    ade = 0.0_dp
-    adp = 0.0_dp
-    e0 = 0.0_dp; p0 = 0.0_dp; scale = 0.0_dp
-    !$omp parallel do schedule(static) if(nc >= par_min_loop) default(shared) &
-    !$omp private(p, i, j, r1, r2, n, jimp, gt, gr, kk) firstprivate(e0, p0, scale) &
-    !$omp reduction(max: ade, adp)
-    do p = 1, nc
-      i = pidx(2*p - 1)
-      j = pidx(2*p)
-      if (law%rotation) then
-        call rod_geometry(theta(i), theta(j), law%length, ug(3*p - 2:3*p), r1, r2, n)
-      else
-        call point_geometry(ug(3*p - 2), r1, r2, n)
-      end if
-      if (audit) then
-        e0 = pair_energy(law, v(:, i), omega(i), v(:, j), omega(j))
-        p0 = v(:, i) + v(:, j)
-        scale = sqrt(sum(v(:, i)**2)) + sqrt(sum(v(:, j)**2))
-      end if
-      call collide(law, v(:, i), omega(i), v(:, j), omega(j), r1, r2, n, jimp, gt, gr, kk)
-      de(p) = energy_change(law, jimp, gt, gr, kk)
-      if (audit) then
-        ade = max(ade, abs(pair_energy(law, v(:, i), omega(i), v(:, j), omega(j)) - e0 - &
-             de(p))/max(e0, tiny(1.0_dp)))
-        adp = max(adp, sqrt(sum((v(:, i) + v(:, j) - p0)**2))/max(scale, tiny(1.0_dp)))
-      end if
-    end do
-    !$omp end parallel do
-  end subroutine collide_pairs
 
   subroutine finish(self, st)
     class(rods_t), intent(inout) :: self
