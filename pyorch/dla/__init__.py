@@ -33,7 +33,7 @@ from pyorch.dla.fractal import Fit
 
 __all__ = ["frames", "has_frames", "frame_spec", "history", "aggregate", "events", "frame_at", "mean_free_path",
            "henderson_z", "contact_value", "mean_free_path_mixture", "measured_mean_free_path",
-           "sticking_energy", "dimensions", "save_run_plots", "save_growth_movie",
+           "sticking_energy", "dimensions", "dimension_ranges", "save_run_plots", "save_growth_movie",
            "write_tables", "METRIC_KEYS", "default_metrics", "fractal"]
 
 
@@ -177,6 +177,38 @@ def dimensions(run_dir: str | Path, n_min: int = 30, r_min_diameters: float = 3.
         "mass_radius": fractal.mass_radius(p, p[0], r_min_diameters * d0, r_max_fraction * rmax),
         "box": fractal.box_counting(p, 2.0 * d0, rmax / 4.0),
     }
+
+
+#: fit ranges of :func:`dimension_ranges`: mass-radius (lower end in diameters, upper end as a
+#: fraction of R_max) and R_g growth (first member, last member as a fraction of N); the first
+#: of each is the central one (that of :func:`dimensions`)
+MASS_RADIUS_RANGES = ((3.0, 1.0 / 2.0), (3.0, 1.0 / 3.0), (6.0, 1.0 / 2.0), (6.0, 1.0 / 3.0))
+RG_RANGES = ((30, 1.0), (100, 1.0), (30, 0.5), (100, 0.5))
+
+
+def dimension_ranges(run_dir: str | Path) -> pd.DataFrame:
+    """D of the aggregate of a run by mass-radius and by R_g growth over each fit range of
+    ``MASS_RADIUS_RANGES`` and ``RG_RANGES``: one row per estimator and range (columns
+    estimator, range, lo, hi, D, fit_err, central). The span of D over the ranges is the
+    fit-range part of the uncertainty; the fit error (a lower bound, correlated points) is
+    kept for reference only. Mass-radius lo, hi in L; R_g growth lo, hi in members (a range
+    whose last member is below twice its first is left out: small aggregates)."""
+    ag = aggregate(run_dir)
+    p = ag[["x", "y"]].to_numpy()
+    d0 = 2.0 * float(ag["r"].iloc[1:].mean())
+    rmax = float(np.hypot(*(p - p[0]).T).max())
+    rows: list[dict[str, Any]] = []
+    for k, (lo_d, hi_f) in enumerate(MASS_RADIUS_RANGES):
+        f = fractal.mass_radius(p, p[0], lo_d * d0, hi_f * rmax)
+        rows.append({"estimator": "mass_radius", "range": f"[{lo_d:g} d, R_max/{1 / hi_f:g}]",
+                     "lo": f.lo, "hi": f.hi, "D": f.d, "fit_err": f.err, "central": k == 0})
+    for k, (n_min, hi_f) in enumerate(RG_RANGES):
+        if k > 0 and int(hi_f * len(p)) < 2 * n_min:
+            continue                                # too few members for this range
+        f = fractal.dimension_rg(p, n_min=n_min, n_max=int(hi_f * len(p)))
+        rows.append({"estimator": "rg", "range": f"[{n_min}, N/{1 / hi_f:g}]", "lo": f.lo,
+                     "hi": f.hi, "D": f.d, "fit_err": f.err, "central": k == 0})
+    return pd.DataFrame(rows)
 
 
 def _circles(ax, x, y, r, colors, **kw):  # type: ignore[no-untyped-def]
