@@ -101,3 +101,24 @@ def test_dimension_ranges_central_row_is_dimensions(tmp_path: Path) -> None:
     assert c.loc["rg", "D"] == dims["rg"].d
     mr = dr[dr["estimator"] == "mass_radius"]
     assert np.allclose(sorted(set(mr["lo"])), [3.0, 6.0])          # diameters of 1 L
+
+
+def test_tables_metrics_and_plots_quote_fit_ranges_not_fit_errors(tmp_path: Path) -> None:
+    """analysis/dimension.csv has every fit range of both estimators (and box counting), the
+    sweep metrics give D with its lowest and highest value over the fit ranges (issue 30: no
+    fit error passed off as the uncertainty), and the run's plots are written."""
+    import pandas as pd
+
+    out = tmp_path / "t"
+    run(Scene.read(DIFFUSIVE).with_overrides({**QUIET, "box.lx": 80.0, "box.ly": 80.0,
+                                              "disks.count": [400, 980]}), out,
+        progress=False)
+    tab = pd.read_csv(dla.write_tables(out)[0])
+    assert tab.groupby("estimator").size().to_dict() == {"box": 1, "mass_radius": 4, "rg": 4}
+    m = dla.default_metrics(out)
+    assert set(m) == set(dla.METRIC_KEYS) and not any(k.endswith("_err") for k in m)
+    for key in ("D_rg", "D_mass_radius"):
+        assert m[key + "_range_lo"] <= m[key] <= m[key + "_range_hi"]
+        assert m[key + "_range_lo"] < m[key + "_range_hi"]
+    names = {p.name for p in dla.save_run_plots(out)}
+    assert {"aggregate.png", "dimension.png"} <= names
