@@ -1,7 +1,7 @@
 """DLA in the DLA regime and its ballistic end (issue 26 item 3, kind 'dla'): clusters of the
-scenes runs/dla_diffusion_limited.nml (4000 sticky disks in a carrier gas, mean free path
-1.5 L) and runs/dla_ballistic.nml (the same sticky disks alone in a 4x wider box, mean free
-path 92 L), one per seed, and their fractal dimension by mass-radius from the seed and by R_g
+scenes runs/dla_diffusion_limited.nml (2000 sticky disks in a carrier gas, mean free path
+2.0 L) and runs/dla_ballistic.nml (the same sticky disks alone in a 720 L box, mean free path
+91 L), one per seed, and their fractal dimension by mass-radius from the seed and by R_g
 against the mass over the growth history.
 
 Uncertainties are physical, not the fits': per estimator the mean over the clusters with its
@@ -10,9 +10,13 @@ fit ranges of :func:`pyorch.dla.dimension_ranges` (mass-radius: lower end 3 or 6
 R_max / 3 or R_max / 2; R_g: members from 30 or 100 to N / 2 or N). The quoted value is the
 central range (mass-radius [3 L, R_max / 2], R_g [30, N]).
 
-    OMP_NUM_THREADS=1 taskset -c 1 .venv/bin/python bench/dla_regime.py [--seeds 8] [--workers 1]
+    OMP_NUM_THREADS=1 .venv/bin/python bench/dla_regime.py [--seeds 8] [--workers 1]
+        [--scenes diffusion_limited ballistic] [--set key=value ...]
 
-Runs go to runs/out/dla_regime/<scene>/seed<k> (completed runs are reused). Writes
+``--set`` overrides scene keys of every run (e.g. ``disks.count=[4000,9935]``; the runs then go
+to runs/out/dla_regime_<tag>/ with ``--tag``).
+
+Runs go to runs/out/dla_regime[_<tag>]/<scene>/seed<k> (completed runs are reused). Writes
 bench/results/dla_regime_runs.csv (one row per cluster and fit range), dla_regime.csv (per
 scene and estimator) and dla_regime.png (D per cluster; a cluster of each scene, coloured by
 sticking order).
@@ -20,6 +24,7 @@ sticking order).
 from __future__ import annotations
 
 import argparse
+import ast
 import json
 import sys
 from concurrent.futures import ProcessPoolExecutor
@@ -42,14 +47,16 @@ OUT = REPO / "runs" / "out" / "dla_regime"
 RESULTS = REPO / "bench" / "results"
 
 
-def run_one(name: str, seed: int) -> Path:
-    """One cluster of scene ``name`` with ``disks.seed = seed`` (no frames, no checkpoints);
-    reused when a completed run is there."""
-    out = OUT / name / f"seed{seed}"
+def run_one(name: str, seed: int, root: Path = OUT, extra: dict[str, object] | None = None) -> Path:
+    """One cluster of scene ``name`` with ``disks.seed = seed`` and the overrides ``extra``
+    (no frames, no checkpoints) in ``root``/name/seed<k>; reused when a completed run is
+    there (the overrides are not compared: a new ``--tag`` per set of overrides)."""
+    out = root / name / f"seed{seed}"
     meta = out / "run.json"
     if meta.is_file() and json.loads(meta.read_text()).get("status") == "completed":
         return out
-    over = {"disks.seed": seed, "output.frame_every": 0, "output.checkpoint_every": 0}
+    over = {"disks.seed": seed, "output.frame_every": 0, "output.checkpoint_every": 0,
+            **(extra or {})}
     run(Scene.read(SCENES[name]).with_overrides(over), out, progress=False, overwrite=True,
         threads=1)
     return out
@@ -89,7 +96,7 @@ def summarise(runs: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def plot(runs: pd.DataFrame, path: Path) -> None:
+def plot(runs: pd.DataFrame, path: Path, root: Path = OUT) -> None:
     """D per cluster (both estimators, both scenes) and one cluster of each scene."""
     import matplotlib
 
@@ -109,8 +116,8 @@ def plot(runs: pd.DataFrame, path: Path) -> None:
     ax.set_xlabel("seed")
     ax.set_ylabel("D (central fit range)")
     ax.legend(frameon=False, fontsize=8)
-    for ax, name in zip(axes[1:], SCENES):
-        out = OUT / name / "seed1"
+    for ax, name in zip(axes[1:], runs["scene"].unique()):
+        out = root / name / "seed1"
         ag = dla.aggregate(out)
         p = ag[["x", "y"]].to_numpy() - ag[["x", "y"]].to_numpy()[0]
         sc = ax.scatter(p[:, 0], p[:, 1], c=np.arange(len(p)) / len(p), s=1.2, cmap="viridis",
@@ -129,18 +136,25 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=8)
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--scenes", nargs="+", default=list(SCENES), choices=list(SCENES))
+    ap.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE",
+                    help="scene overrides of every run (Python literals)")
+    ap.add_argument("--tag", default="", help="names the runs' folder and the outputs")
     args = ap.parse_args()
+    extra = {k: ast.literal_eval(v) for k, v in (a.split("=", 1) for a in args.set)}
+    suffix = f"_{args.tag}" if args.tag else ""
+    root = OUT.with_name(OUT.name + suffix)
     jobs = [(name, s) for name in args.scenes for s in range(1, args.seeds + 1)]
     with ProcessPoolExecutor(args.workers) as pool:
-        outs = list(pool.map(run_one, *zip(*jobs)))
+        outs = list(pool.map(run_one, *zip(*jobs), [root] * len(jobs), [extra] * len(jobs)))
     runs = pd.DataFrame([r for (name, s), out in zip(jobs, outs)
                          for r in cluster_rows(name, s, out)])
     RESULTS.mkdir(parents=True, exist_ok=True)
-    runs.to_csv(RESULTS / "dla_regime_runs.csv", index=False)
+    runs.to_csv(RESULTS / f"dla_regime{suffix}_runs.csv", index=False)
     table = summarise(runs)
-    table.to_csv(RESULTS / "dla_regime.csv", index=False)
-    plot(runs, RESULTS / "dla_regime.png")
+    table.to_csv(RESULTS / f"dla_regime{suffix}.csv", index=False)
+    plot(runs, RESULTS / f"dla_regime{suffix}.png", root)
     print(machine_line())
+    print("overrides:", extra or "none")
     print(table.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
 
 
