@@ -291,8 +291,8 @@ def test_explicit_overlap_refused(tmp_path: Path) -> None:
 def test_gas_pressure_and_collision_rate_against_henderson_and_enskog(tmp_path: Path) -> None:
     """eta = 0.3, 1000 disks: the collision-virial Z within 3 % of Henderson's
     (1 + eta^2/8)/(1 - eta)^2 and the pair collision rate per disk within 3 % of Enskog's
-    2 n sigma g(sigma) sqrt(pi kT/m), g(sigma) = (Z - 1)/(2 eta). The tolerance is the
-    hard-wall layer (4 lx r / A = 4 %), not the statistics (0.2 %): bench/RESULTS.md s. 12."""
+    2 n sigma g(sigma) sqrt(pi kT/m), g(sigma) = (Z - 1)/(2 eta). Loose; the EOS at 1.2 %
+    with the measured kT is tests/test_dla_pressure.py (bench/RESULTS.md s. 14)."""
     eta, n, r = 0.3, 1000, 0.5
     lx = float(np.sqrt(n * np.pi * r**2 / eta))
     out = _run(tmp_path, "z", **{"box.lx": lx, "box.ly": lx, "run.t_end": 60.0,

@@ -109,7 +109,10 @@ module edmd_core
     integer(i8) :: n_same = 0               !< consecutive events at the same time (guard)
     integer(i8) :: max_same = 0             !< guard: allowed zero-time cascade length
     real(dp) :: virial = 0                  !< sum of r_ij . dp_i over free-free collisions [M L^2/tau]
-    real(dp) :: wall_impulse = 0            !< sum of |dp| over wall hits [M L/tau]
+    !> sum over wall hits of |dp| / (2 (lx + ly - 4 r_i)) [M/tau]: each hit divided by the
+    !> perimeter that the centres of disk i reach (lx - 2 r_i, ly - 2 r_i per side), so
+    !> wall_impulse / dt is the wall pressure [E/L^2], the sum of the species' partial ones
+    real(dp) :: wall_impulse = 0
     ! aggregate
     integer, allocatable :: parent(:)       !< disk it stuck to (0: seed or free)
     real(dp), allocatable :: t_stick(:)
@@ -418,14 +421,17 @@ contains
   end subroutine ed_place_lattice
 
   !> Velocities of the free disks: 'fixed_speed' |v| = sqrt(2 kT/m) in a random
-  !> direction (the seed's), or 'maxwell' (each component normal, variance kT/m).
+  !> direction (the seed's), or 'maxwell' (each component normal, variance kT/m), the
+  !> draw then scaled by one factor so that E_kin = N_free kT exactly (2D, no conserved
+  !> momentum in the closed box): the gas starts at the scene's kT, not at a draw of it
+  !> (1/sqrt(N) off; 'fixed_speed' has E_kin = N_free kT by construction).
   subroutine ed_velocities(s, g, rule, kt)
     type(ed_t), intent(inout) :: s
     type(rng_t), intent(inout) :: g
     character(len=*), intent(in) :: rule
     real(dp), intent(in) :: kt
-    integer :: i
-    real(dp) :: a, sp
+    integer :: i, n_free
+    real(dp) :: a, sp, e, f
     do i = 1, s%n
       if (s%state(i) /= state_free) cycle
       if (rule == 'maxwell') then
@@ -437,6 +443,16 @@ contains
         s%d(i)%vx = sp*cos(a)
         s%d(i)%vy = sp*sin(a)
       end if
+    end do
+    if (rule /= 'maxwell') return
+    n_free = count(s%state(1:s%n) == state_free)
+    e = ed_kinetic(s)
+    if (n_free == 0 .or. .not. e > 0.0_dp) return
+    f = sqrt(real(n_free, dp)*kt/e)
+    do i = 1, s%n
+      if (s%state(i) /= state_free) cycle
+      s%d(i)%vx = f*s%d(i)%vx
+      s%d(i)%vy = f*s%d(i)%vy
     end do
   end subroutine ed_velocities
 
@@ -850,11 +866,11 @@ contains
       select case (w)                        ! exactly at contact with the wall
       case (1, 2)
         a%x = merge(a%r, s%lx - a%r, w == 1)
-        s%wall_impulse = s%wall_impulse + 2.0_dp*s%m(i)*abs(a%vx)
+        s%wall_impulse = s%wall_impulse + 2.0_dp*s%m(i)*abs(a%vx)/reached_perimeter(s, a%r)
         a%vx = -a%vx
       case (3, 4)
         a%y = merge(a%r, s%ly - a%r, w == 3)
-        s%wall_impulse = s%wall_impulse + 2.0_dp*s%m(i)*abs(a%vy)
+        s%wall_impulse = s%wall_impulse + 2.0_dp*s%m(i)*abs(a%vy)/reached_perimeter(s, a%r)
         a%vy = -a%vy
       end select
       a%coll = a%coll + 1
@@ -864,6 +880,14 @@ contains
     call log_event(s, ev_wall, i, -w)
     if (s%calendar /= cal_rescan) call predict(s, i)
   end subroutine wall_hit
+
+  !> Perimeter [L] along which the centre of a disk of radius r touches the walls: each
+  !> side less r at either end (the wall pressure's length, not the box's 2 (lx + ly)).
+  pure real(dp) function reached_perimeter(s, r) result(p)
+    type(ed_t), intent(in) :: s
+    real(dp), intent(in) :: r
+    p = 2.0_dp*(s%lx + s%ly - 4.0_dp*r)
+  end function reached_perimeter
 
   !> Collision of free disk i with disk j at te: elastic (j free), or with a
   !> static j: stick (the rule) or bounce (sticking off / the last free disk).

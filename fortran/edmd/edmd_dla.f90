@@ -461,8 +461,8 @@ contains
          '# history.dat: cumulative event counts, free disks (all; free_sticky: those of '// &
          'sticky species), kinetic energy, momentum of the '// &
          'free disks; pressures over the interval since the previous row (0 on the first): '// &
-         'P_virial = (E_kin + sum r_ij.dp_i / (2 dt)) / A, P_wall = wall impulse / (perimeter '// &
-         'dt). '//units, &
+         'P_virial = (E_kin + sum r_ij.dp_i / (2 dt)) / A, P_wall = sum of each wall hit''s '// &
+         '|dp| / (2 (lx + ly - 4 r_i) dt) (the perimeter its centre reaches). '//units, &
          '# tick t[tau] events[1] pair[1] wall[1] stick[1] bounce[1] cross[1] free[1] '// &
          'E_kin[E] px[M*L/tau] py[M*L/tau] P_virial[E/L^2] P_wall[E/L^2] free_sticky[1]', &
          append, st)
@@ -600,7 +600,7 @@ contains
       pw = 0
       if (dt > 0) then
         pv = (ek + self%s%virial/(2.0_dp*dt))/area
-        pw = self%s%wall_impulse/(2.0_dp*(self%lx + self%ly)*dt)
+        pw = self%s%wall_impulse/dt          ! each hit over the perimeter its centre reaches
       end if
       write(line, '(i0,1x,'//rfmt//',7(1x,i0),5(1x,'//rfmt//'),1x,i0)') &
            self%step, t, self%s%n_events, self%s%n_pair, self%s%n_wall, &

@@ -33,7 +33,7 @@ from pyorch.dla.fractal import Fit
 
 __all__ = ["frames", "has_frames", "frame_spec", "history", "aggregate", "events", "frame_at", "mean_free_path",
            "henderson_z", "contact_value", "mean_free_path_mixture", "measured_mean_free_path",
-           "sticking_energy", "dimensions", "save_run_plots", "save_growth_movie",
+           "sticking_energy", "dimensions", "dimension_ranges", "save_run_plots", "save_growth_movie",
            "write_tables", "METRIC_KEYS", "default_metrics", "fractal"]
 
 
@@ -179,6 +179,38 @@ def dimensions(run_dir: str | Path, n_min: int = 30, r_min_diameters: float = 3.
     }
 
 
+#: fit ranges of :func:`dimension_ranges`: mass-radius (lower end in diameters, upper end as a
+#: fraction of R_max) and R_g growth (first member, last member as a fraction of N); the first
+#: of each is the central one (that of :func:`dimensions`)
+MASS_RADIUS_RANGES = ((3.0, 1.0 / 2.0), (3.0, 1.0 / 3.0), (6.0, 1.0 / 2.0), (6.0, 1.0 / 3.0))
+RG_RANGES = ((30, 1.0), (100, 1.0), (30, 0.5), (100, 0.5))
+
+
+def dimension_ranges(run_dir: str | Path) -> pd.DataFrame:
+    """D of the aggregate of a run by mass-radius and by R_g growth over each fit range of
+    ``MASS_RADIUS_RANGES`` and ``RG_RANGES``: one row per estimator and range (columns
+    estimator, range, lo, hi, D, fit_err, central). The span of D over the ranges is the
+    fit-range part of the uncertainty; the fit error (a lower bound, correlated points) is
+    kept for reference only. Mass-radius lo, hi in L; R_g growth lo, hi in members (a range
+    whose last member is below twice its first is left out: small aggregates)."""
+    ag = aggregate(run_dir)
+    p = ag[["x", "y"]].to_numpy()
+    d0 = 2.0 * float(ag["r"].iloc[1:].mean())
+    rmax = float(np.hypot(*(p - p[0]).T).max())
+    rows: list[dict[str, Any]] = []
+    for k, (lo_d, hi_f) in enumerate(MASS_RADIUS_RANGES):
+        f = fractal.mass_radius(p, p[0], lo_d * d0, hi_f * rmax)
+        rows.append({"estimator": "mass_radius", "range": f"[{lo_d:g} d, R_max/{1 / hi_f:g}]",
+                     "lo": f.lo, "hi": f.hi, "D": f.d, "fit_err": f.err, "central": k == 0})
+    for k, (n_min, hi_f) in enumerate(RG_RANGES):
+        if k > 0 and int(hi_f * len(p)) < 2 * n_min:
+            continue                                # too few members for this range
+        f = fractal.dimension_rg(p, n_min=n_min, n_max=int(hi_f * len(p)))
+        rows.append({"estimator": "rg", "range": f"[{n_min}, N/{1 / hi_f:g}]", "lo": f.lo,
+                     "hi": f.hi, "D": f.d, "fit_err": f.err, "central": k == 0})
+    return pd.DataFrame(rows)
+
+
 def _circles(ax, x, y, r, colors, **kw):  # type: ignore[no-untyped-def]
     from matplotlib.collections import EllipseCollection
 
@@ -192,8 +224,11 @@ def _circles(ax, x, y, r, colors, **kw):  # type: ignore[no-untyped-def]
 
 def save_run_plots(run_dir: str | Path, out: str | Path | None = None,
                    full: bool = False) -> list[Path]:
-    """``plots/aggregate.png`` (members coloured by sticking time, last frame's gas in grey),
-    ``plots/dimension.png`` (R_g(n) and M(r) with their fits), ``plots/history.png``;
+    """``plots/aggregate.png`` (members coloured by sticking order, member / N: a colour scale
+    in sticking time is swamped by the last few disks, which arrive late from the corners;
+    last frame's gas in grey), ``plots/dimension.png`` (R_g(n) and M(r) with their central
+    fits, labelled with the span of D over the fit ranges of :func:`dimension_ranges`, not
+    the fit's error), ``plots/history.png``;
     ``full`` adds ``plots/growth.gif`` (the frames as a movie)."""
     import matplotlib
 
@@ -216,9 +251,10 @@ def save_run_plots(run_dir: str | Path, out: str | Path | None = None,
                  facecolors="0.8", edgecolors="0.6", linewidths=0.3)
     if has_agg:
         ag = aggregate(run_dir)
+        order = ag["member"].to_numpy() / max(len(ag) - 1, 1)
         ec = _circles(ax, ag["x"].to_numpy(), ag["y"].to_numpy(), ag["r"].to_numpy(),
-                      ag["t_stick"].to_numpy(), cmap="viridis", linewidths=0)
-        fig.colorbar(ec, ax=ax, shrink=0.8, label=r"sticking time [$\tau$]")
+                      order, cmap="viridis", linewidths=0)
+        fig.colorbar(ec, ax=ax, shrink=0.8, label="sticking order (member / N)")
     ax.set_xlim(0, lx)
     ax.set_ylim(0, ly)
     ax.set_aspect("equal")
@@ -232,13 +268,19 @@ def save_run_plots(run_dir: str | Path, out: str | Path | None = None,
         ag = aggregate(run_dir)
         p = ag[["x", "y"]].to_numpy()
         dims = dimensions(run_dir)
+        span = dimension_ranges(run_dir).groupby("estimator")["D"].agg(["min", "max"])
+
+        def label(est: str, d: float) -> str:
+            lo, hi = span.loc[est, "min"], span.loc[est, "max"]
+            return f"$D = {d:.2f}$ (fit ranges {lo:.2f}..{hi:.2f})"
+
         n, rg = fractal.radius_of_gyration_growth(p)
         fig, (a1, a2) = plt.subplots(1, 2, figsize=(9, 3.8))
         a1.loglog(n[1:], rg[1:], lw=1)
         f = dims["rg"]
         sel = n >= f.lo
         a1.loglog(n[sel], rg[sel][-1] * (n[sel] / n[sel][-1]) ** (1 / f.d), "k--",
-                  label=f"$D = {f.d:.3f} \\pm {f.err:.3f}$")
+                  label=label("rg", f.d))
         a1.set_xlabel("members $n$")
         a1.set_ylabel(r"$R_g$ [$L$]")
         a1.legend(frameon=False)
@@ -247,7 +289,7 @@ def save_run_plots(run_dir: str | Path, out: str | Path | None = None,
         a2.loglog(d[1:], np.arange(2, len(d) + 1), lw=1)
         rr = np.geomspace(f.lo, f.hi, 10)
         m0 = np.searchsorted(d, f.hi, side="right")
-        a2.loglog(rr, m0 * (rr / f.hi) ** f.d, "k--", label=f"$D = {f.d:.3f} \\pm {f.err:.3f}$")
+        a2.loglog(rr, m0 * (rr / f.hi) ** f.d, "k--", label=label("mass_radius", f.d))
         a2.set_xlabel(r"$r$ from the seed [$L$]")
         a2.set_ylabel("$M(r)$")
         a2.legend(frameon=False)
@@ -274,16 +316,22 @@ def save_run_plots(run_dir: str | Path, out: str | Path | None = None,
 
 
 def write_tables(run_dir: str | Path, out: str | Path | None = None) -> list[Path]:
-    """``analysis/dimension.csv``: D by each estimator with its fit error and range."""
+    """``analysis/dimension.csv``: D by each estimator over each fit range
+    (:func:`dimension_ranges`; box counting over its one range), with the fit's error (a lower
+    bound, for reference) and the range; column ``central`` marks the quoted range."""
     run_dir = Path(run_dir)
     out = Path(out) if out is not None else run_dir / "analysis"
     out.mkdir(parents=True, exist_ok=True)
     if not (run_dir / "aggregate.dat").is_file() or len(aggregate(run_dir)) <= 60:
         return []
-    rows = [{"estimator": k, "D": f.d, "fit_err": f.err, "range_lo": f.lo, "range_hi": f.hi,
-             "points": f.n_points} for k, f in dimensions(run_dir).items()]
+    box = dimensions(run_dir)["box"]
+    rows = dimension_ranges(run_dir).rename(columns={"lo": "range_lo", "hi": "range_hi"})
+    rows = pd.concat([rows, pd.DataFrame([{"estimator": "box", "range": "[2 d, R_max/4]",
+                                           "range_lo": box.lo, "range_hi": box.hi, "D": box.d,
+                                           "fit_err": box.err, "central": True}])],
+                     ignore_index=True)
     path = out / "dimension.csv"
-    pd.DataFrame(rows).to_csv(path, index=False)
+    rows.to_csv(path, index=False)
     return [path]
 
 
@@ -305,24 +353,28 @@ def _scene_value(text: str, key: str) -> float:
 
 
 #: columns of :func:`default_metrics`
-METRIC_KEYS = ("members", "D_rg", "D_rg_err", "D_mass_radius", "D_mass_radius_err",
-               "free_final", "free_sticky_final", "E_kin_final", "t_final")
+METRIC_KEYS = ("members", "D_rg", "D_rg_range_lo", "D_rg_range_hi", "D_mass_radius",
+               "D_mass_radius_range_lo", "D_mass_radius_range_hi", "free_final", "free_sticky_final", "E_kin_final", "t_final")
 
 
 def default_metrics(run: object) -> dict[str, float]:
     """Sweep results of one run (a :class:`pyorch.run.Run` or a run directory): members,
-    D by R_g and by mass-radius (with fit errors), free disks (all, and of sticky species),
-    E_kin [E] and the time [tau] at the end."""
+    D by R_g and by mass-radius (central fit range, and the lowest and highest D over the fit
+    ranges of :func:`dimension_ranges`: the fit-range uncertainty; the fits' own errors are
+    not a physical uncertainty and are not reported), free disks (all, and of sticky
+    species), E_kin [E] and the time [tau] at the end."""
     run_dir = Path(getattr(run, "dir", run))  # type: ignore[arg-type]
     out: dict[str, float] = {k: float("nan") for k in METRIC_KEYS}
     if (Path(run_dir) / "aggregate.dat").is_file():
         ag = aggregate(run_dir)
         out["members"] = float(len(ag))
         if len(ag) > 60:
-            dims = dimensions(run_dir)
-            out.update({"D_rg": dims["rg"].d, "D_rg_err": dims["rg"].err,
-                        "D_mass_radius": dims["mass_radius"].d,
-                        "D_mass_radius_err": dims["mass_radius"].err})
+            dr = dimension_ranges(run_dir)
+            for est, key in (("rg", "D_rg"), ("mass_radius", "D_mass_radius")):
+                g = dr[dr["estimator"] == est]
+                out[key] = float(g.loc[g["central"], "D"].iloc[0])
+                out[key + "_range_lo"] = float(g["D"].min())
+                out[key + "_range_hi"] = float(g["D"].max())
     if (Path(run_dir) / "history.dat").is_file():
         h = history(run_dir)
         out["free_final"] = float(h["free"].iloc[-1])
