@@ -1,7 +1,8 @@
 !> External force fields F_ext(x, t) of seed 000 ("known as functions of time and space"),
 !> kind 'lj_box'. Units: length a, time T = sqrt(a/g), force m g (unit mass).
 !>
-!> Shapes (dx = x - x0, dy = y - y0, r = |(dx, dy)|, A = amplitude, e = (ex, ey) unit):
+!> Shapes (dx = x - x0, dy = y - y0, r = |(dx, dy)|, A = amplitude,
+!> e = (ux, uy) = (ex, ey)/|(ex, ey)|: set by the kind, ex and ey kept as the scene gives them):
 !>   uniform          F = (f0x, f0y)
 !>   gradient         F = (f0x + gxx dx + gxy dy,  f0y + gyx dx + gyy dy)
 !>   standing_wave    F = A e sin(kx x + ky y + phase) cos(omega t)
@@ -18,7 +19,9 @@
 module fields
   use kinds, only: dp, i8
   use errors, only: status_t, set_error, exit_bad_input, msg_len
-  use scene_input, only: int_str
+  use scene_input, only: int_str, printable
+  use, intrinsic :: iso_fortran_env, only: iostat_eor
+  use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   implicit none
   private
 
@@ -41,7 +44,8 @@ module fields
     real(dp) :: gxx = 0, gxy = 0, gyx = 0, gyy = 0   !< gradient [m g/a]
     real(dp) :: x0 = 0, y0 = 0            !< reference point [a]
     real(dp) :: amplitude = 0             !< A [m g] (vortex: [m g a])
-    real(dp) :: ex = 1, ey = 0            !< wave force direction (unit) [1]
+    real(dp) :: ex = 1, ey = 0            !< wave force direction as given (any length) [1]
+    real(dp) :: ux = 1, uy = 0            !< (ex, ey) normalised: the direction in use [1]
     real(dp) :: kx = 0, ky = 0            !< wave vector [1/a]
     real(dp) :: omega = 0, phase = 0      !< wave angular frequency [1/T], phase [rad]
     real(dp) :: power = 2, r0 = 1, r_core = 0.5_dp   !< point/vortex: exponent [1], r0, core [a]
@@ -101,10 +105,10 @@ contains
       gy = f%f0y + f%gyx*dx + f%gyy*dy
     case (fk_standing)
       c = f%amplitude*sin(f%kx*x + f%ky*y + f%phase)*cos(f%omega*t)
-      gx = c*f%ex; gy = c*f%ey
+      gx = c*f%ux; gy = c*f%uy
     case (fk_travelling)
       c = f%amplitude*sin(f%kx*x + f%ky*y - f%omega*t + f%phase)
-      gx = c*f%ex; gy = c*f%ey
+      gx = c*f%ux; gy = c*f%uy
     case (fk_point)
       r = sqrt(dx*dx + dy*dy)
       if (r >= f%r_core) then
@@ -184,7 +188,7 @@ contains
     case (fk_gradient)
       yes = f%gxy == f%gyx
     case (fk_standing, fk_travelling)
-      yes = abs(f%ex*f%ky - f%ey*f%kx) <= 1.0e-14_dp*sqrt(f%kx**2 + f%ky**2) .and. &
+      yes = abs(f%ux*f%ky - f%uy*f%kx) <= 1.0e-14_dp*sqrt(f%kx**2 + f%ky**2) .and. &
            (f%kx /= 0 .or. f%ky /= 0)
     case default
       yes = .false.
@@ -212,7 +216,7 @@ contains
         e = e - (f%f0x*dx + f%f0y*dy + 0.5_dp*(f%gxx*dx*dx + 2*f%gxy*dx*dy + f%gyy*dy*dy))
       case (fk_standing, fk_travelling)
         kk = sqrt(f%kx**2 + f%ky**2)
-        ek = (f%ex*f%kx + f%ey*f%ky)/kk
+        ek = (f%ux*f%kx + f%uy*f%ky)/kk
         if (f%shape == fk_standing) then
           a = f%amplitude*cos(f%omega*t)
           ph = f%kx*x(i) + f%ky*y(i) + f%phase
@@ -236,41 +240,48 @@ contains
     e = e*modulation(f, t)
   end function field_potential
 
-  !> Read a tabulated field. Text; '#' starts a comment; blank lines are skipped:
-  !>   nx ny nt                  grid nodes in x and y (>= 2 each), frames (>= 1)
+  !> Read a tabulated field. Text; '#' starts a comment; blank lines are skipped; values
+  !> are separated by blanks and each line holds exactly the values named:
+  !>   nx ny nt                  grid nodes in x and y (>= 2 each), frames (>= 1): integers
   !>   x0 y0 dx dy               first node [a], spacings [a] (> 0)
   !>   t0 dt                     time of the first frame [T], between frames [T] (> 0)
   !>   fx fy                     nx*ny*nt lines [m g]: x fastest, then y, then the frame
-  !> Exactly nx*ny*nt value lines: fewer or more are refused (never padded or cut).
+  !> Exactly nx*ny*nt value lines: fewer or more are refused (never padded or cut), and so
+  !> is a line with another number of values (never read in part).
   subroutine field_read_table(f, path, st)
     type(field_t), intent(inout) :: f
     character(len=*), intent(in) :: path
     type(status_t), intent(inout) :: st
-    integer :: u, ios, line_no, got, need, i, j, k, c, stage
+    integer :: u, ios, line_no, got, need, i, j, k, c, stage, nv
     integer :: iv(3)
     real(dp) :: v(4)
-    character(len=1024) :: line
+    character(len=:), allocatable :: line
     character(len=msg_len) :: iom
+    logical :: ok
     open(newunit=u, file=path, status='old', action='read', iostat=ios, iomsg=iom)
     if (ios /= 0) then
       call fail('cannot open the field table: '//trim(iom))
       return
     end if
-    stage = 0; got = 0; need = 0; line_no = 0
+    stage = 0; got = 0; need = 0; line_no = 0; nv = 0
     i = 1; j = 1; k = 1
     do
-      read(u, '(a)', iostat=ios) line
+      call read_line(u, line, ios)
       if (ios /= 0) exit
       line_no = line_no + 1
       c = index(line, '#')
-      if (c > 0) line(c:) = ' '
-      if (len_trim(line) == 0) cycle
+      if (c > 0) line = line(:c - 1)
+      nv = count_values(line)
+      if (nv == 0) cycle
       stage = stage + 1
       select case (stage)
       case (1)
-        read(line, *, iostat=ios) iv
-        if (ios /= 0 .or. any(iv < [2, 2, 1]) .or. any(iv > 100000)) then
-          call fail(at()//'"nx ny nt" with nx, ny in [2, 100000], nt in [1, 100000]')
+        ok = nv == 3
+        if (ok) call ints(line, iv, ok)
+        if (ok) ok = all(iv >= [2, 2, 1]) .and. all(iv <= 100000)
+        if (.not. ok) then
+          call fail(at()//'expected "nx ny nt": 3 integers with nx, ny in [2, 100000], nt in '// &
+               '[1, 100000]'//found())
           exit
         end if
         if (real(iv(1), dp)*iv(2)*iv(3) > 5.0e7_dp) then
@@ -282,16 +293,20 @@ contains
         if (allocated(f%tab)) deallocate(f%tab)
         allocate(f%tab(2, f%nx, f%ny, f%nt))
       case (2)
-        read(line, *, iostat=ios) v(1:4)
-        if (ios /= 0 .or. .not. (v(3) > 0 .and. v(4) > 0)) then
-          call fail(at()//'"x0 y0 dx dy" with dx, dy > 0 [a]')
+        ok = nv == 4
+        if (ok) call reals(line, v(1:4), ok)
+        if (ok) ok = v(3) > 0 .and. v(4) > 0
+        if (.not. ok) then
+          call fail(at()//'expected "x0 y0 dx dy": 4 finite reals with dx, dy > 0 [a]'//found())
           exit
         end if
         f%gx0 = v(1); f%gy0 = v(2); f%gdx = v(3); f%gdy = v(4)
       case (3)
-        read(line, *, iostat=ios) v(1:2)
-        if (ios /= 0 .or. .not. (v(2) > 0)) then
-          call fail(at()//'"t0 dt" with dt > 0 [T]')
+        ok = nv == 2
+        if (ok) call reals(line, v(1:2), ok)
+        if (ok) ok = v(2) > 0
+        if (.not. ok) then
+          call fail(at()//'expected "t0 dt": 2 finite reals with dt > 0 [T]'//found())
           exit
         end if
         f%gt0 = v(1); f%gdt = v(2)
@@ -301,9 +316,11 @@ contains
           call fail(at()//'more than nx*ny*nt = '//istr(need)//' value lines')
           exit
         end if
-        read(line, *, iostat=ios) v(1:2)
-        if (ios /= 0 .or. .not. (abs(v(1)) < 1.0e30_dp .and. abs(v(2)) < 1.0e30_dp)) then
-          call fail(at()//'expected two finite reals "fx fy" [m g]')
+        ok = nv == 2
+        if (ok) call reals(line, v(1:2), ok)
+        if (ok) ok = abs(v(1)) < 1.0e30_dp .and. abs(v(2)) < 1.0e30_dp
+        if (.not. ok) then
+          call fail(at()//'expected two finite reals "fx fy" [m g] (|f| < 1e30)'//found())
           exit
         end if
         f%tab(:, i, j, k) = v(1:2)
@@ -332,11 +349,177 @@ contains
       character(len=:), allocatable :: s
       s = 'line '//istr(line_no)//': '
     end function at
+    !> ", found N values: 'the line'" (messages; the line cut at 60 characters).
+    function found() result(s)
+      character(len=:), allocatable :: s
+      character(len=:), allocatable :: shown
+      shown = trim(adjustl(line))
+      if (len(shown) > 60) shown = shown(:57)//'...'
+      s = ', found '//istr(nv)//' value'//trim(merge('s', ' ', nv /= 1))//': '''// &
+           printable(shown)//''''
+    end function found
     function istr(q) result(s)
       integer, intent(in) :: q
       character(len=:), allocatable :: s
       s = int_str(int(q, i8))
     end function istr
   end subroutine field_read_table
+
+  !> One whole line of unit u, however long (ios /= 0 at the end of the file).
+  subroutine read_line(u, line, ios)
+    integer, intent(in) :: u
+    character(len=:), allocatable, intent(out) :: line
+    integer, intent(out) :: ios
+    character(len=256) :: buf
+    integer :: got
+    line = ''
+    do
+      got = 0
+      read(u, '(a)', advance='no', size=got, iostat=ios) buf
+      line = line//buf(:got)
+      if (ios == iostat_eor) then
+        ios = 0
+        return
+      end if
+      if (ios /= 0) then
+        if (is_iostat_end(ios) .and. len(line) > 0) ios = 0   ! last line without a newline
+        return
+      end if
+    end do
+  end subroutine read_line
+
+  !> Is c a separator between a table's values (blank, tab, carriage return)?
+  pure logical function is_sep(c)
+    character, intent(in) :: c
+    is_sep = c == ' ' .or. c == achar(9) .or. c == achar(13)
+  end function is_sep
+
+  !> Number of values (separated words) on a line.
+  pure integer function count_values(line) result(n)
+    character(len=*), intent(in) :: line
+    integer :: p
+    logical :: inword
+    n = 0
+    inword = .false.
+    do p = 1, len(line)
+      if (is_sep(line(p:p))) then
+        inword = .false.
+      else if (.not. inword) then
+        n = n + 1
+        inword = .true.
+      end if
+    end do
+  end function count_values
+
+  !> Word w (1-based) of a line ('' if it has fewer).
+  pure function word(line, w) result(r)
+    character(len=*), intent(in) :: line
+    integer, intent(in) :: w
+    character(len=:), allocatable :: r
+    integer :: p, n, p0
+    n = 0
+    p = 1
+    r = ''
+    do while (p <= len(line))
+      if (is_sep(line(p:p))) then
+        p = p + 1
+        cycle
+      end if
+      p0 = p
+      do while (p <= len(line))
+        if (is_sep(line(p:p))) exit
+        p = p + 1
+      end do
+      n = n + 1
+      if (n == w) then
+        r = line(p0:p - 1)
+        return
+      end if
+    end do
+  end function word
+
+  !> The line's first size(iv) words as integers (optional sign, at most 9 digits);
+  !> ok = all are.
+  subroutine ints(line, iv, ok)
+    character(len=*), intent(in) :: line
+    integer, intent(out) :: iv(:)
+    logical, intent(out) :: ok
+    integer :: w, m, ios
+    character(len=:), allocatable :: t
+    iv = 0
+    ok = .true.
+    do w = 1, size(iv)
+      t = word(line, w)
+      m = 1
+      if (len(t) > 0) then
+        if (index('+-', t(1:1)) > 0) m = 2
+      end if
+      ok = len(t) >= m .and. len(t) - m < 9
+      if (ok) ok = verify(t(m:), '0123456789') == 0
+      if (.not. ok) return
+      read(t, *, iostat=ios) iv(w)
+      ok = ios == 0
+      if (.not. ok) return
+    end do
+  end subroutine ints
+
+  !> The line's first size(v) words as finite reals (real_literal); ok = all are.
+  subroutine reals(line, v, ok)
+    character(len=*), intent(in) :: line
+    real(dp), intent(out) :: v(:)
+    logical, intent(out) :: ok
+    integer :: w, ios
+    character(len=:), allocatable :: t
+    v = 0
+    ok = .true.
+    do w = 1, size(v)
+      t = word(line, w)
+      ok = real_literal(t)
+      if (.not. ok) return
+      read(t, *, iostat=ios) v(w)
+      ok = ios == 0
+      if (ok) ok = ieee_is_finite(v(w))
+      if (.not. ok) return
+    end do
+  end subroutine reals
+
+  !> A number as Fortran writes one: [sign] (digits [. [digits]] | . digits)
+  !> [(e|E|d|D) [sign] digits]. No repeat counts, separators, NaN or Infinity.
+  logical function real_literal(t) result(ok)
+    character(len=*), intent(in) :: t
+    integer :: p, nd
+    ok = .false.
+    if (len(t) == 0) return
+    p = 1
+    if (index('+-', t(1:1)) > 0) p = 2
+    nd = 0
+    call digits()
+    if (p <= len(t)) then
+      if (t(p:p) == '.') then
+        p = p + 1
+        call digits()
+      end if
+    end if
+    if (nd == 0) return
+    if (p <= len(t)) then
+      if (index('eEdD', t(p:p)) == 0) return
+      p = p + 1
+      if (p <= len(t)) then
+        if (index('+-', t(p:p)) > 0) p = p + 1
+      end if
+      nd = 0
+      call digits()
+      if (nd == 0) return
+    end if
+    ok = p > len(t)
+  contains
+    subroutine digits()
+      do while (p <= len(t))
+        if (index('0123456789', t(p:p)) == 0) exit
+        p = p + 1
+        nd = nd + 1
+      end do
+    end subroutine digits
+  end function real_literal
 
 end module fields

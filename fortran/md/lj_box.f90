@@ -10,13 +10,13 @@
 !> particle mass 1), force m g, energy m g a.
 module lj_box
   use kinds, only: dp, i8
-  use errors, only: status_t, set_error, exit_bad_input, exit_io, exit_numerical, msg_len
+  use errors, only: status_t, set_error, exit_bad_input, exit_io, exit_numerical
   use method, only: method_t, fname_len, max_out_files, add_output
   use tables, only: table_t, table_open, table_line, table_flush, table_close, rfmt
   use frames, only: frames_t, frames_open, frames_begin, frames_put, frames_end, frames_flush, &
        frames_close, json_real
-  use scene_input, only: open_scene, group_status, kind_len, check_real, check_int, &
-       check_choice, choice_index, put_real, put_int, put_str, int_str, real_str
+  use scene_input, only: kind_len, choice_index, int_str, real_str
+  use schema, only: schema_t, max_steps_all
   use ckpt, only: ckpt_writer_t, ckpt_put, file_crc64
   use state, only: state_t, state_allocate
   use neighbours, only: nlist_t, nlist_setup, nlist_refresh, nlist_owners, nb_all_pairs, &
@@ -39,7 +39,6 @@ module lj_box
   public :: lj_box_t
 
   integer, parameter :: nm = 32
-  integer(i8), parameter :: max_steps = 4000000000000000000_i8
   real(dp), parameter :: big = 1.0e12_dp
   character(len=*), parameter :: units = 'Units: length a (particle radius), time T = '// &
        'sqrt(a/g), mass m (all 1), force m g, energy m g a.'
@@ -108,199 +107,196 @@ module lj_box
     type(table_t) :: frames, energy, field_out
     type(frames_t) :: frames_bin
   contains
-    procedure :: load, read => read_file, scene_text, open_outputs, advance, finish
+    procedure :: load, keys, open_outputs, advance, finish
     procedure :: close_outputs, output_files, save_state, restore_state, counters
     procedure :: progress_text, json_fields
   end type lj_box_t
 
 contains
 
+  !> The scene of this kind, declared once (module schema): reading, validation, scene.nml
+  !> and `partsim --describe lj_box` come from it. Ranges that depend on other keys are
+  !> checked in validate.
+  subroutine keys(self, s)
+    class(lj_box_t), intent(inout), target :: self
+    type(schema_t), intent(inout) :: s
+    call s%init('lj_box', 'kind lj_box (seed 000). '//units)
+    call s%group('scene', 'what this scene is', required=.true.)
+    call s%key('kind', self%kind, '', 'the method and system of this scene', choices='lj_box')
+    call s%key('title', self%title, '', 'free text (UTF-8)')
+    call s%group('box', 'the square box [0, L]^2')
+    call s%key('l', self%l, 'a', 'side L of the box (> 2 with contact = ''surface'')', &
+         lo=0.0_dp, lo_open=.true., hi=1.0e6_dp)
+    call s%group('particles', 'number, initial positions and velocities')
+    call s%key('n', self%n, '', 'number of particles', lo=1_i8, hi=10000000_i8)
+    call s%key('placement', self%placement, '', 'random sequential addition at '// &
+         'min_distance, or a square lattice', choices='random|lattice')
+    call s%key('min_distance', self%min_distance, 'a', 'least distance between centres at '// &
+         't = 0 (<= l)', lo=0.0_dp, hi=1.0e6_dp)
+    call s%key('velocities', self%velocities, '', 'initial velocities: zero, one speed in '// &
+         'uniform random directions, or Maxwellian at temperature', &
+         choices='zero|speed|maxwell')
+    call s%key('speed', self%speed, 'a/T', 'initial speed (velocities = ''speed'')', &
+         lo=0.0_dp, hi=1.0e6_dp)
+    call s%key('temperature', self%temperature, 'm g a', 'kT of the Maxwellian (velocities '// &
+         '= ''maxwell'')', lo=0.0_dp, lo_open=.true., hi=1.0e6_dp)
+    call s%key('seed', self%seed, '', 'RNG seed of the initial state', lo=1_i8, &
+         hi=2147483647_i8)
+    call s%key('type_id', self%type_id, '', 'particle type written to the frames (not 3: '// &
+         'gns treats type 3 as kinematic)', lo=0_i8, hi=1000_i8)
+    call s%group('steric', 'the truncated Lennard-Jones pair law (eqs. 3-5, 8-9) and the '// &
+         'neighbour search')
+    call s%key('law', self%law, '', 'the pair law (eqs. 3-5), or no pair forces', &
+         choices='lj|none')
+    call s%key('p', self%p, '', 'exponent of the law', lo=1_i8, hi=64_i8)
+    call s%key('u0', self%u0, 'm g a', 'well depth', lo=0.0_dp, hi=1.0e6_dp)
+    call s%key('r_m', self%r_m, 'a', 'the force is linear below r_m (seed 000: r_m < 2a)', &
+         lo=0.0_dp, lo_open=.true., hi=2.0_dp, hi_open=.true.)
+    call s%key('r_cut', self%r_cut, 'a', 'cut-off R: zero force beyond (> r_m)', lo=0.0_dp, &
+         lo_open=.true., hi=1.0e6_dp)
+    call s%key('neighbour', self%neighbour, '', 'pair search: Verlet list, cell list or '// &
+         'all pairs', choices=join(neighbour_names))
+    call s%key('skin', self%skin, 'a', 'Verlet list skin (> 0 with neighbour = ''verlet'')', &
+         lo=0.0_dp, hi=1.0e3_dp)
+    call s%group('physics', 'the drag')
+    call s%key('alpha', self%alpha, '1', 'Stokes drag -(9/2) alpha v (eq. 7)', lo=0.0_dp, &
+         hi=1.0e6_dp)
+    call s%group('field', 'the external force F_ext(x, t) (module fields: formulas there)')
+    call s%key('type', self%field_type, '', 'shape of the field', choices=join(field_shapes))
+    call fkey('f0x', self%fl%f0x, 'm g', 'uniform part, x')
+    call fkey('f0y', self%fl%f0y, 'm g', 'uniform part, y')
+    call fkey('gxx', self%fl%gxx, 'm g/a', 'gradient dFx/dx')
+    call fkey('gxy', self%fl%gxy, 'm g/a', 'gradient dFx/dy')
+    call fkey('gyx', self%fl%gyx, 'm g/a', 'gradient dFy/dx')
+    call fkey('gyy', self%fl%gyy, 'm g/a', 'gradient dFy/dy')
+    call fkey('x0', self%fl%x0, 'a', 'reference point, x')
+    call fkey('y0', self%fl%y0, 'a', 'reference point, y')
+    call fkey('amplitude', self%fl%amplitude, 'm g', 'amplitude A (vortex: in m g a)')
+    call fkey('ex', self%fl%ex, '1', 'wave force direction (ex, ey), x (normalised in use; '// &
+         'not both 0)')
+    call fkey('ey', self%fl%ey, '1', 'wave force direction (ex, ey), y')
+    call fkey('kx', self%fl%kx, '1/a', 'wave vector, x')
+    call fkey('ky', self%fl%ky, '1/a', 'wave vector, y')
+    call fkey('omega', self%fl%omega, '1/T', 'wave angular frequency')
+    call fkey('phase', self%fl%phase, 'rad', 'wave phase')
+    call s%key('power', self%fl%power, '1', 'point field exponent', lo=-10.0_dp, hi=10.0_dp)
+    call s%key('r0', self%fl%r0, 'a', 'point field reference distance', lo=0.0_dp, &
+         lo_open=.true., hi=big)
+    call s%key('r_core', self%fl%r_core, 'a', 'point and vortex core radius', lo=0.0_dp, &
+         lo_open=.true., hi=big)
+    call s%key('modulation', self%modulation, '', 'time factor m(t): 1, cos(mod_omega t + '// &
+         'mod_phase), or min(1, t/mod_time)', choices=join(field_modulations))
+    call fkey('mod_omega', self%fl%mod_omega, '1/T', 'modulation angular frequency')
+    call fkey('mod_phase', self%fl%mod_phase, 'rad', 'modulation phase')
+    call s%key('mod_time', self%fl%mod_time, 'T', 'ramp time', lo=0.0_dp, lo_open=.true., &
+         hi=big)
+    call s%key('file', self%field_file, '', 'tabulated field (type = ''table''; format in '// &
+         'fields.f90 field_read_table)')
+    call s%group('walls', 'inelastic mirror walls (eq. 10)')
+    call s%key('gamma', self%gamma, '1', 'kinetic energy kept per wall hit', lo=0.0_dp, &
+         lo_open=.true., hi=1.0_dp)
+    call s%key('contact', self%contact, '', 'a wall is hit by the surface (centre within a) '// &
+         'or by the centre', choices='surface|centre')
+    call s%group('integration', 'the integrator and the run length')
+    call s%key('method', self%integrator, '', 'explicit Euler, semi-implicit (symplectic) '// &
+         'Euler or velocity Verlet', choices=join(method_names))
+    call s%key('dt', self%dt, 'T', 'time step', lo=0.0_dp, lo_open=.true., hi=1.0e3_dp)
+    call s%key('steps', self%steps, 'steps', 'run length', lo=1_i8, hi=max_steps_all)
+    call s%group('output', 'cadences in steps (0 = file off)')
+    call s%key('frame_every', self%frame_every, 'steps', 'frames rows (0 = off)', lo=0_i8, &
+         hi=max_steps_all)
+    call s%key('energy_every', self%energy_every, 'steps', 'energy.dat rows (0 = off)', &
+         lo=0_i8, hi=max_steps_all)
+    call s%key('checkpoint_every', self%checkpoint_every, 'steps', 'checkpoints (0 = only '// &
+         'at step 0)', lo=0_i8, hi=max_steps_all)
+    call s%key('progress_every', self%progress_every, 'steps', 'progress lines (0: about '// &
+         '200 per run, resolved in scene.nml)', lo=0_i8, hi=max_steps_all)
+    call s%key('field_grid', self%field_grid, '', 'field.dat: grid points per side (0 = off)', &
+         lo=0_i8, hi=1000_i8)
+    call s%key('frames_format', self%frames_format, '', 'frames.dat (text), frames.bin '// &
+         '(binary) or both', choices='text|binary|both')
+  contains
+    !> A field parameter: any finite value within +-1e12.
+    subroutine fkey(name, v, unit, doc)
+      character(len=*), intent(in) :: name, unit, doc
+      real(dp), intent(inout), target :: v
+      call s%key(name, v, unit, doc, lo=-big, hi=big)
+    end subroutine fkey
+  end subroutine keys
+
+  !> 'a|b|c' from a list of names (a choice key's choices).
+  function join(names) result(r)
+    character(len=*), intent(in) :: names(:)
+    character(len=:), allocatable :: r
+    integer :: k
+    r = ''
+    do k = 1, size(names)
+      if (k > 1) r = r//'|'
+      r = r//trim(names(k))
+    end do
+  end function join
+
+  !> Read, validate, build the derived quantities and the initial state.
   subroutine load(self, path, st)
     class(lj_box_t), intent(inout), target :: self
     character(len=*), intent(in) :: path
     type(status_t), intent(inout) :: st
-    call self%read(path, st)
+    type(schema_t) :: s
+    call self%keys(s)
+    call s%read(path, st)
     if (st%code /= 0) return
-    call validate(self, path, st)
+    call s%validate(path, st)
     if (st%code /= 0) return
+    call validate(self, s, path, st)
+    if (st%code /= 0) return
+    if (self%progress_every == 0) self%progress_every = max(1_i8, self%steps/200)  ! as stated
     call build(self, st)
     if (st%code /= 0) return
     call initial_state(self, path, st)
   end subroutine load
 
-  !> The scene file's groups (type checks only).
-  subroutine read_file(self, path, st)
-    class(lj_box_t), intent(inout), target :: self
-    character(len=*), intent(in) :: path
-    type(status_t), intent(inout) :: st
-    character(len=kind_len) :: kind
-    character(len=128) :: title
-    real(dp) :: l, min_distance, speed, temperature, u0, r_m, r_cut, skin, alpha, gamma, dt
-    real(dp) :: f0x, f0y, gxx, gxy, gyx, gyy, x0, y0, amplitude, ex, ey, kx, ky, omega, phase
-    real(dp) :: power, r0, r_core, mod_omega, mod_phase, mod_time
-    integer(i8) :: n, seed, type_id, p, steps, frame_every, energy_every, checkpoint_every
-    integer(i8) :: progress_every, field_grid
-    character(len=nm) :: placement, velocities, law, neighbour, type, modulation, contact
-    character(len=nm) :: method, frames_format
-    character(len=512) :: file
-    integer :: u, ios
-    character(len=msg_len) :: iom
-    namelist /scene/ kind, title
-    namelist /box/ l
-    namelist /particles/ n, placement, min_distance, velocities, speed, temperature, seed, &
-         type_id
-    namelist /steric/ law, p, u0, r_m, r_cut, neighbour, skin
-    namelist /physics/ alpha
-    namelist /field/ type, f0x, f0y, gxx, gxy, gyx, gyy, x0, y0, amplitude, ex, ey, kx, ky, &
-         omega, phase, power, r0, r_core, modulation, mod_omega, mod_phase, mod_time, file
-    namelist /walls/ gamma, contact
-    namelist /integration/ method, dt, steps
-    namelist /output/ frame_every, energy_every, checkpoint_every, progress_every, field_grid, &
-         frames_format
-    kind = self%kind; title = self%title; l = self%l
-    n = self%n; placement = self%placement; min_distance = self%min_distance
-    velocities = self%velocities; speed = self%speed; temperature = self%temperature
-    seed = self%seed; type_id = self%type_id
-    law = self%law; p = self%p; u0 = self%u0; r_m = self%r_m; r_cut = self%r_cut
-    neighbour = self%neighbour; skin = self%skin; alpha = self%alpha
-    associate (f => self%fl)
-      type = self%field_type; modulation = self%modulation; file = self%field_file
-      f0x = f%f0x; f0y = f%f0y; gxx = f%gxx; gxy = f%gxy; gyx = f%gyx; gyy = f%gyy
-      x0 = f%x0; y0 = f%y0; amplitude = f%amplitude; ex = f%ex; ey = f%ey; kx = f%kx
-      ky = f%ky; omega = f%omega; phase = f%phase; power = f%power; r0 = f%r0
-      r_core = f%r_core; mod_omega = f%mod_omega; mod_phase = f%mod_phase
-      mod_time = f%mod_time
-    end associate
-    gamma = self%gamma; contact = self%contact
-    method = self%integrator; dt = self%dt; steps = self%steps
-    frame_every = self%frame_every; energy_every = self%energy_every
-    checkpoint_every = self%checkpoint_every; progress_every = self%progress_every
-    field_grid = self%field_grid; frames_format = self%frames_format
-    call open_scene(path, u, st)
-    if (st%code /= 0) return
-    read(u, nml=scene, iostat=ios, iomsg=iom)
-    call group_status(path, 'scene', ios, iom, .true., st)
-    rewind(u); read(u, nml=box, iostat=ios, iomsg=iom)
-    call group_status(path, 'box', ios, iom, .false., st)
-    rewind(u); read(u, nml=particles, iostat=ios, iomsg=iom)
-    call group_status(path, 'particles', ios, iom, .false., st)
-    rewind(u); read(u, nml=steric, iostat=ios, iomsg=iom)
-    call group_status(path, 'steric', ios, iom, .false., st)
-    rewind(u); read(u, nml=physics, iostat=ios, iomsg=iom)
-    call group_status(path, 'physics', ios, iom, .false., st)
-    rewind(u); read(u, nml=field, iostat=ios, iomsg=iom)
-    call group_status(path, 'field', ios, iom, .false., st)
-    rewind(u); read(u, nml=walls, iostat=ios, iomsg=iom)
-    call group_status(path, 'walls', ios, iom, .false., st)
-    rewind(u); read(u, nml=integration, iostat=ios, iomsg=iom)
-    call group_status(path, 'integration', ios, iom, .false., st)
-    rewind(u); read(u, nml=output, iostat=ios, iomsg=iom)
-    call group_status(path, 'output', ios, iom, .false., st)
-    close(u)
-    if (st%code /= 0) return
-    self%kind = kind; self%title = title; self%l = l
-    self%n = n; self%placement = placement; self%min_distance = min_distance
-    self%velocities = velocities; self%speed = speed; self%temperature = temperature
-    self%seed = seed; self%type_id = type_id
-    self%law = law; self%p = p; self%u0 = u0; self%r_m = r_m; self%r_cut = r_cut
-    self%neighbour = neighbour; self%skin = skin; self%alpha = alpha
-    self%field_type = type; self%modulation = modulation; self%field_file = file
-    self%fl = field_t(f0x=f0x, f0y=f0y, gxx=gxx, gxy=gxy, gyx=gyx, gyy=gyy, x0=x0, y0=y0, &
-         amplitude=amplitude, ex=ex, ey=ey, kx=kx, ky=ky, omega=omega, phase=phase, &
-         power=power, r0=r0, r_core=r_core, mod_omega=mod_omega, mod_phase=mod_phase, &
-         mod_time=mod_time)
-    self%gamma = gamma; self%contact = contact
-    self%integrator = method; self%dt = dt; self%steps = steps
-    self%frame_every = frame_every; self%energy_every = energy_every
-    self%checkpoint_every = checkpoint_every; self%progress_every = progress_every
-    self%field_grid = field_grid; self%frames_format = frames_format
-  end subroutine read_file
-
-  subroutine validate(self, path, st)
+  !> The rules across keys (each key's own range is declared in keys).
+  subroutine validate(self, s, path, st)
     class(lj_box_t), intent(inout) :: self
+    type(schema_t), intent(in) :: s
     character(len=*), intent(in) :: path
     type(status_t), intent(inout) :: st
-    associate (f => self%fl)
-      call check_choice(path, 'scene', 'kind', self%kind, ['lj_box'], st)
-      call check_real(path, 'box', 'l', self%l, 0.0_dp, 1.0e6_dp, .false., st)
-      call check_int(path, 'particles', 'n', self%n, 1_i8, 10000000_i8, st)
-      call check_choice(path, 'particles', 'placement', self%placement, &
-           [character(len=nm) :: 'random', 'lattice'], st)
-      call check_real(path, 'particles', 'min_distance', self%min_distance, 0.0_dp, &
-           self%l, .true., st)
-      call check_choice(path, 'particles', 'velocities', self%velocities, &
-           [character(len=nm) :: 'zero', 'speed', 'maxwell'], st)
-      call check_real(path, 'particles', 'speed', self%speed, 0.0_dp, 1.0e6_dp, .true., st)
-      call check_real(path, 'particles', 'temperature', self%temperature, 0.0_dp, 1.0e6_dp, &
-           .false., st)
-      call check_int(path, 'particles', 'seed', self%seed, 1_i8, 2147483647_i8, st)
-      call check_int(path, 'particles', 'type_id', self%type_id, 0_i8, 1000_i8, st)
-      if (self%type_id == 3) call set_error(st, exit_bad_input, trim(path)// &
-           ': &particles type_id = 3: allowed [0, 1000] except 3 (gns treats type 3 as '// &
-           'kinematic particles, not learned)')
-      call check_choice(path, 'steric', 'law', self%law, [character(len=nm) :: 'lj', 'none'], st)
-      call check_int(path, 'steric', 'p', self%p, 1_i8, 64_i8, st)
-      call check_real(path, 'steric', 'u0', self%u0, 0.0_dp, 1.0e6_dp, .true., st)
-      call check_real(path, 'steric', 'r_m', self%r_m, 0.0_dp, 2.0_dp, .false., st)
-      if (self%r_m == 2.0_dp) call set_error(st, exit_bad_input, trim(path)// &
-           ': &steric r_m = 2: allowed (0, 2) [a] (seed 000: r_m < 2a)')
-      call check_real(path, 'steric', 'r_cut', self%r_cut, self%r_m, 1.0e6_dp, .false., st)
-      call check_choice(path, 'steric', 'neighbour', self%neighbour, neighbour_names, st)
-      call check_real(path, 'steric', 'skin', self%skin, 0.0_dp, 1.0e3_dp, &
-           trim(self%neighbour) /= 'verlet', st)
-      call check_real(path, 'physics', 'alpha', self%alpha, 0.0_dp, 1.0e6_dp, .true., st)
-      call check_choice(path, 'field', 'type', self%field_type, field_shapes, st)
-      call check_choice(path, 'field', 'modulation', self%modulation, field_modulations, st)
-      call check_real(path, 'field', 'f0x', f%f0x, -big, big, .true., st)
-      call check_real(path, 'field', 'f0y', f%f0y, -big, big, .true., st)
-      call check_real(path, 'field', 'gxx', f%gxx, -big, big, .true., st)
-      call check_real(path, 'field', 'gxy', f%gxy, -big, big, .true., st)
-      call check_real(path, 'field', 'gyx', f%gyx, -big, big, .true., st)
-      call check_real(path, 'field', 'gyy', f%gyy, -big, big, .true., st)
-      call check_real(path, 'field', 'x0', f%x0, -big, big, .true., st)
-      call check_real(path, 'field', 'y0', f%y0, -big, big, .true., st)
-      call check_real(path, 'field', 'amplitude', f%amplitude, -big, big, .true., st)
-      call check_real(path, 'field', 'ex', f%ex, -big, big, .true., st)
-      call check_real(path, 'field', 'ey', f%ey, -big, big, .true., st)
-      call check_real(path, 'field', 'kx', f%kx, -big, big, .true., st)
-      call check_real(path, 'field', 'ky', f%ky, -big, big, .true., st)
-      call check_real(path, 'field', 'omega', f%omega, -big, big, .true., st)
-      call check_real(path, 'field', 'phase', f%phase, -big, big, .true., st)
-      call check_real(path, 'field', 'power', f%power, -10.0_dp, 10.0_dp, .true., st)
-      call check_real(path, 'field', 'r0', f%r0, 0.0_dp, big, .false., st)
-      call check_real(path, 'field', 'r_core', f%r_core, 0.0_dp, big, .false., st)
-      call check_real(path, 'field', 'mod_omega', f%mod_omega, -big, big, .true., st)
-      call check_real(path, 'field', 'mod_phase', f%mod_phase, -big, big, .true., st)
-      call check_real(path, 'field', 'mod_time', f%mod_time, 0.0_dp, big, .false., st)
-      call check_real(path, 'walls', 'gamma', self%gamma, 0.0_dp, 1.0_dp, .false., st)
-      call check_choice(path, 'walls', 'contact', self%contact, &
-           [character(len=nm) :: 'surface', 'centre'], st)
-      call check_choice(path, 'integration', 'method', self%integrator, method_names, st)
-      call check_real(path, 'integration', 'dt', self%dt, 0.0_dp, 1.0e3_dp, .false., st)
-      call check_int(path, 'integration', 'steps', self%steps, 1_i8, max_steps, st)
-      call check_int(path, 'output', 'frame_every', self%frame_every, 0_i8, max_steps, st)
-      call check_int(path, 'output', 'energy_every', self%energy_every, 0_i8, max_steps, st)
-      call check_int(path, 'output', 'checkpoint_every', self%checkpoint_every, 0_i8, &
-           max_steps, st)
-      call check_int(path, 'output', 'progress_every', self%progress_every, 0_i8, max_steps, st)
-      call check_int(path, 'output', 'field_grid', self%field_grid, 0_i8, 1000_i8, st)
-      call check_choice(path, 'output', 'frames_format', self%frames_format, &
-           [character(len=nm) :: 'text', 'binary', 'both'], st)
-      if (st%code /= 0) return
-      if (trim(self%contact) == 'surface' .and. self%l <= 2) call set_error(st, &
-           exit_bad_input, trim(path)//': &box l = '//real_str(self%l)//': allowed (2, 1e6] '// &
-           'with &walls contact = ''surface'' (the centres stay a away from the walls)')
-      f%shape = choice_index(self%field_type, field_shapes) - 1       ! codes from 0
-      f%modulation = choice_index(self%modulation, field_modulations) - 1
-      select case (trim(self%field_type))
-      case ('standing_wave', 'travelling_wave')
-        if (f%ex == 0 .and. f%ey == 0) call set_error(st, exit_bad_input, trim(path)// &
-             ': &field ex = ey = 0: the wave''s force direction (ex, ey) must be non-zero')
-      case ('table')
-        if (len_trim(self%field_file) == 0) call set_error(st, exit_bad_input, trim(path)// &
-             ': &field file: required with type = ''table'' (a tabulated field)')
-      end select
-    end associate
+    if (self%type_id == 3) then
+      call fail('particles', 'type_id', 'type_id = 3: allowed [0, 1000] except 3 (gns '// &
+           'treats type 3 as kinematic particles, not learned)')
+    else if (self%min_distance > self%l) then
+      call fail('particles', 'min_distance', 'min_distance = '//real_str(self%min_distance)// &
+           ': allowed [0, l = '//real_str(self%l)//'] [a]')
+    else if (self%r_cut <= self%r_m) then
+      call fail('steric', 'r_cut', 'r_cut = '//real_str(self%r_cut)//': allowed (r_m = '// &
+           real_str(self%r_m)//', 1e6] [a]')
+    else if (trim(self%neighbour) == 'verlet' .and. self%skin <= 0) then
+      call fail('steric', 'skin', 'skin = '//real_str(self%skin)//': allowed (0, 1000] [a] '// &
+           'with neighbour = ''verlet''')
+    else if (trim(self%contact) == 'surface' .and. self%l <= 2) then
+      call fail('box', 'l', 'l = '//real_str(self%l)//': allowed (2, 1e6] [a] with &walls '// &
+           'contact = ''surface'' (the centres stay a away from the walls)')
+    else if ((trim(self%field_type) == 'standing_wave' .or. &
+         trim(self%field_type) == 'travelling_wave') .and. self%fl%ex == 0 .and. &
+         self%fl%ey == 0) then
+      call fail('field', 'ex', 'ex = ey = 0: the wave''s force direction (ex, ey) must be '// &
+           'non-zero')
+    else if (trim(self%field_type) == 'table' .and. len_trim(self%field_file) == 0) then
+      call fail('field', 'file', 'file: required with type = ''table'' (a tabulated field)')
+    end if
+    if (st%code /= 0) return
+    self%fl%shape = choice_index(self%field_type, field_shapes) - 1       ! codes from 0
+    self%fl%modulation = choice_index(self%modulation, field_modulations) - 1
+  contains
+    !> 'path: line N: &group msg' (the line of group%key when the file gives it).
+    subroutine fail(group, key, msg)
+      character(len=*), intent(in) :: group, key, msg
+      character(len=:), allocatable :: where
+      where = trim(path)//': '
+      if (s%line_of(group, key) > 0) where = where//'line '// &
+           int_str(int(s%line_of(group, key), i8))//': '
+      call set_error(st, exit_bad_input, where//'&'//group//' '//msg)
+    end subroutine fail
   end subroutine validate
 
   !> Derived quantities: the law, the field (table read), walls, the neighbour list.
@@ -309,10 +305,10 @@ contains
     type(status_t), intent(inout) :: st
     real(dp) :: norm, need_lo, need_hi
     associate (f => self%fl)
-      if (f%shape == 3 .or. f%shape == 4) then
+      if (f%shape == 3 .or. f%shape == 4) then   ! the direction in use; ex, ey stay as given
         norm = sqrt(f%ex**2 + f%ey**2)
-        f%ex = f%ex/norm
-        f%ey = f%ey/norm
+        f%ux = f%ex/norm
+        f%uy = f%ey/norm
       end if
       if (trim(self%contact) == 'surface') then
         self%lo = 1; self%hi = self%l - 1
@@ -505,80 +501,6 @@ contains
       uf = field_potential(self%fl, s%t, s%n, s%x, s%y)
     end associate
   end subroutine energies
-
-  function scene_text(self) result(text)
-    class(lj_box_t), intent(inout), target :: self
-    character(len=:), allocatable :: text
-    character(len=1), parameter :: nl = achar(10)
-    text = '! resolved scene: kind lj_box (seed 000). '//units//nl//'&scene'//nl
-    call put_str(text, 'kind', self%kind, '')
-    call put_str(text, 'title', self%title, '')
-    text = text//'/'//nl//'&box'//nl
-    call put_real(text, 'l', self%l, 'a: the box [0, L]^2')
-    text = text//'/'//nl//'&particles'//nl
-    call put_int(text, 'n', self%n, 'particles')
-    call put_str(text, 'placement', self%placement, '''random'' | ''lattice''')
-    call put_real(text, 'min_distance', self%min_distance, 'a: between centres at t = 0')
-    call put_str(text, 'velocities', self%velocities, '''zero'' | ''speed'' | ''maxwell''')
-    call put_real(text, 'speed', self%speed, 'a/T (velocities = ''speed'')')
-    call put_real(text, 'temperature', self%temperature, 'm g a (kT, velocities = ''maxwell'')')
-    call put_int(text, 'seed', self%seed, 'RNG of the initial state')
-    call put_int(text, 'type_id', self%type_id, 'particle type in frames.dat')
-    text = text//'/'//nl//'&steric'//nl
-    call put_str(text, 'law', self%law, '''lj'' (eqs. 3-5) | ''none''')
-    call put_int(text, 'p', self%p, 'exponent (integer)')
-    call put_real(text, 'u0', self%u0, 'm g a: well depth')
-    call put_real(text, 'r_m', self%r_m, 'a: linear core below')
-    call put_real(text, 'r_cut', self%r_cut, 'a: R, zero beyond')
-    call put_str(text, 'neighbour', self%neighbour, '''verlet'' | ''cells'' | ''all_pairs''')
-    call put_real(text, 'skin', self%skin, 'a: Verlet list skin')
-    text = text//'/'//nl//'&physics'//nl
-    call put_real(text, 'alpha', self%alpha, 'drag -(9/2) alpha v, eq. 7')
-    text = text//'/'//nl//'&field'//nl
-    associate (f => self%fl)
-      call put_str(text, 'type', self%field_type, '')
-      call put_real(text, 'f0x', f%f0x, 'm g')
-      call put_real(text, 'f0y', f%f0y, 'm g')
-      call put_real(text, 'gxx', f%gxx, 'm g/a')
-      call put_real(text, 'gxy', f%gxy, 'm g/a')
-      call put_real(text, 'gyx', f%gyx, 'm g/a')
-      call put_real(text, 'gyy', f%gyy, 'm g/a')
-      call put_real(text, 'x0', f%x0, 'a')
-      call put_real(text, 'y0', f%y0, 'a')
-      call put_real(text, 'amplitude', f%amplitude, 'm g (vortex: m g a)')
-      call put_real(text, 'ex', f%ex, 'wave force direction (normalised)')
-      call put_real(text, 'ey', f%ey, '')
-      call put_real(text, 'kx', f%kx, '1/a')
-      call put_real(text, 'ky', f%ky, '1/a')
-      call put_real(text, 'omega', f%omega, '1/T')
-      call put_real(text, 'phase', f%phase, 'rad')
-      call put_real(text, 'power', f%power, 'point field exponent')
-      call put_real(text, 'r0', f%r0, 'a')
-      call put_real(text, 'r_core', f%r_core, 'a')
-      call put_str(text, 'modulation', self%modulation, '''none'' | ''cos'' | ''ramp''')
-      call put_real(text, 'mod_omega', f%mod_omega, '1/T')
-      call put_real(text, 'mod_phase', f%mod_phase, 'rad')
-      call put_real(text, 'mod_time', f%mod_time, 'T (ramp)')
-      call put_str(text, 'file', self%field_file, 'tabulated field (type = ''table'')')
-    end associate
-    text = text//'/'//nl//'&walls'//nl
-    call put_real(text, 'gamma', self%gamma, 'kinetic energy kept per wall hit, (0, 1]')
-    call put_str(text, 'contact', self%contact, '''surface'' (centre within a) | ''centre''')
-    text = text//'/'//nl//'&integration'//nl
-    call put_str(text, 'method', self%integrator, &
-         '''euler'' | ''semi_implicit_euler'' | ''velocity_verlet''')
-    call put_real(text, 'dt', self%dt, 'T')
-    call put_int(text, 'steps', self%steps, '')
-    text = text//'/'//nl//'&output'//nl
-    call put_int(text, 'frame_every', self%frame_every, 'steps (0 = off)')
-    call put_int(text, 'energy_every', self%energy_every, 'steps (0 = off)')
-    call put_int(text, 'checkpoint_every', self%checkpoint_every, 'steps (0 = none)')
-    call put_int(text, 'progress_every', self%progress_every, 'steps (0 = about 200 lines)')
-    call put_int(text, 'field_grid', self%field_grid, 'field.dat points per side (0 = off)')
-    call put_str(text, 'frames_format', self%frames_format, &
-         'text: frames.dat, binary: frames.bin, both')
-    text = text//'/'//nl
-  end function scene_text
 
   subroutine open_outputs(self, dir, append, st)
     class(lj_box_t), intent(inout) :: self
