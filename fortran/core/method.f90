@@ -29,7 +29,7 @@ module method
     integer(i8) :: progress_every = 0       !< units between progress lines (0: about 200 per run)
   contains
     procedure(load_i), deferred :: load
-    procedure :: keys => keys_none
+    procedure(keys_i), deferred :: keys
     procedure :: read => read_default
     procedure :: scene_text => scene_text_default
     procedure(open_i), deferred :: open_outputs
@@ -135,13 +135,6 @@ contains
     n = n + 1
     names(n) = name
   end subroutine add_output
-
-  !> Transitional: a kind that has not declared its keys yet (removed when every kind has).
-  subroutine keys_none(self, s)
-    class(method_t), intent(inout), target :: self
-    type(schema_t), intent(inout) :: s
-    if (.false.) s%nk = s%nk + 0*storage_size(self)
-  end subroutine keys_none
 
   !> Read the scene file only (file-level and type checks, no range
   !> validation), for resolving a scene as the engine reads it.

@@ -1,7 +1,8 @@
-!> Scene-input framework shared by every kind: which kind a scene file is,
-!> range checks whose messages name the file, group, key, value and allowed
-!> range, and the writers of the resolved scene (strings quoted so that they
-!> round-trip, reals with every digit).
+!> Scene-input helpers shared by every kind: which kind a scene file is, the
+!> file as checked text, range checks for the rules across keys whose messages
+!> name the file, group, key, value and allowed range, and the number and string
+!> formats of scene.nml (strings quoted so that they round-trip, reals with
+!> every digit). The reader itself is module schema.
 module scene_input
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use kinds, only: dp, i8
@@ -9,9 +10,8 @@ module scene_input
   implicit none
   private
 
-  public :: kind_len, read_kind, read_text, max_scene_bytes, open_scene, group_status, &
-       printable, lower_case, check_real, check_int, check_choice, choice_index, &
-       put_real, put_int, put_str, put_logical, quoted, real_str, int_str
+  public :: kind_len, read_kind, read_text, max_scene_bytes, printable, lower_case, &
+       check_real, check_int, choice_index, quoted, real_str, int_str
 
   integer, parameter :: kind_len = 32
   integer(i8), parameter :: max_scene_bytes = 1048576   !< a scene file is text of at most 1 MiB
@@ -189,35 +189,7 @@ contains
     end do
   end function lower_case
 
-  !> Open a scene file for reading namelist groups (exit_io naming the file if it cannot).
-  subroutine open_scene(path, u, st)
-    character(len=*), intent(in) :: path
-    integer, intent(out) :: u
-    type(status_t), intent(inout) :: st
-    integer :: ios
-    character(len=msg_len) :: iom
-    iom = ''
-    open(newunit=u, file=path, status='old', action='read', iostat=ios, iomsg=iom)
-    if (ios /= 0) then
-      u = -1
-      call set_error(st, exit_io, trim(path)//': cannot open scene file: '//trim(iom))
-    end if
-  end subroutine open_scene
 
-  !> The status of one namelist group read (ios, iom of the read): a malformed
-  !> group is refused naming it; an absent one keeps its defaults unless required.
-  subroutine group_status(path, name, ios, iom, required, st)
-    character(len=*), intent(in) :: path, name, iom
-    integer, intent(in) :: ios
-    logical, intent(in) :: required
-    type(status_t), intent(inout) :: st
-    if (ios > 0) then
-      call set_error(st, exit_bad_input, trim(path)//': &'//name//': cannot read group: '// &
-           trim(iom))
-    else if (ios < 0 .and. required) then
-      call set_error(st, exit_bad_input, trim(path)//': missing group &'//name)
-    end if
-  end subroutine group_status
 
   !> A finite real in [lo, hi] (open at lo unless lo_closed).
   subroutine check_real(path, group, key, v, lo, hi, lo_closed, st)
@@ -244,21 +216,6 @@ contains
          int_str(v)//': allowed integers in ['//int_str(lo)//', '//int_str(hi)//']')
   end subroutine check_int
 
-  !> `v` must be one of `allowed` (compared trimmed, case-sensitive).
-  subroutine check_choice(path, group, key, v, allowed, st)
-    character(len=*), intent(in) :: path, group, key, v
-    character(len=*), intent(in) :: allowed(:)
-    type(status_t), intent(inout) :: st
-    character(len=:), allocatable :: list
-    integer :: k
-    if (any([(trim(allowed(k)) == trim(v), k = 1, size(allowed))])) return
-    list = ''
-    do k = 1, size(allowed)
-      list = list//merge(' | ', '   ', k > 1)//quoted(trim(allowed(k)))
-    end do
-    call set_error(st, exit_bad_input, trim(path)//': &'//group//' '//key//' = '// &
-         quoted(trim(v))//': allowed '//adjustl(list))
-  end subroutine check_choice
 
   !> Position of v in allowed (1-based, compared trimmed; 0 when absent): a checked choice
   !> (check_choice) mapped to the method's code.
@@ -361,43 +318,5 @@ contains
     s = trim(buf)
   end function int_str
 
-  !> Lines of a resolved scene appended to `text`: '  key = value  ! note'.
-  subroutine put_real(text, key, v, note)
-    character(len=:), allocatable, intent(inout) :: text
-    character(len=*), intent(in) :: key, note
-    real(dp), intent(in) :: v
-    call put_line(text, key, real_str(v), note)
-  end subroutine put_real
-
-  subroutine put_int(text, key, v, note)
-    character(len=:), allocatable, intent(inout) :: text
-    character(len=*), intent(in) :: key, note
-    integer(i8), intent(in) :: v
-    call put_line(text, key, int_str(v), note)
-  end subroutine put_int
-
-  subroutine put_str(text, key, v, note)
-    character(len=:), allocatable, intent(inout) :: text
-    character(len=*), intent(in) :: key, v, note
-    call put_line(text, key, quoted(trim(v)), note)
-  end subroutine put_str
-
-  subroutine put_logical(text, key, v, note)
-    character(len=:), allocatable, intent(inout) :: text
-    character(len=*), intent(in) :: key, note
-    logical, intent(in) :: v
-    call put_line(text, key, trim(merge('.true. ', '.false.', v)), note)
-  end subroutine put_logical
-
-  subroutine put_line(text, key, value, note)
-    character(len=:), allocatable, intent(inout) :: text
-    character(len=*), intent(in) :: key, value, note
-    if (.not. allocated(text)) text = ''
-    if (len(note) > 0) then
-      text = text//'  '//key//' = '//value//'  ! '//note//achar(10)
-    else
-      text = text//'  '//key//' = '//value//achar(10)
-    end if
-  end subroutine put_line
 
 end module scene_input

@@ -417,7 +417,7 @@ contains
     character(len=1), parameter :: nl = achar(10)
     integer :: g, k
     character(len=:), allocatable :: ty
-    text = '# kind '//s%kind//': '//s%header//nl//nl// &
+    text = '# '//s%header//nl//nl// &
          '| group | key | type | default | allowed | unit | meaning |'//nl// &
          '|---|---|---|---|---|---|---|'//nl
     do g = 1, s%ng
