@@ -72,15 +72,15 @@ def line_of(path: Path, needle: str) -> int:
     ("n = 200", "n = NaN", "n = NaN", "&particles n = NaN: must be an integer"),
     ("alpha = 0.02", "alpha = NaN", "alpha = NaN", "&physics alpha = NaN: must be a finite number"),
     ("steps = 20000", "steps = 2000000000000", "steps =",
-     "&integration steps = 2000000000000: allowed integers in [1, 1000000000000]"),
+     "&integration steps = 2000000000000: allowed range [1, 1000000000000]"),
     ("frame_every = 100", "frame_every = 1000000000001", "frame_every",
-     "&output frame_every = 1000000000001: allowed integers in [0, 1000000000000]"),
+     "&output frame_every = 1000000000001: allowed range [0, 1000000000000]"),
     ("r_cut = 5.0", "r_cut = 1.5", "r_cut", "&steric r_cut = 1.5: allowed (r_m = 1.8, 1e6] [a]"),
     ("skin = 0.6", "skin = 0.0", "skin",
      "&steric skin = 0.0: allowed (0, 1000] [a] with neighbour = 'verlet'"),
     ("min_distance = 2.2", "min_distance = 41.0", "min_distance",
      "&particles min_distance = 41.0: allowed [0, l = 40.0] [a]"),
-    ("gamma = 0.8", "gamma = 0.0", "gamma", "&walls gamma = 0.0: allowed (0.0, 1.0]"),
+    ("gamma = 0.8", "gamma = 0.0", "gamma", "&walls gamma = 0.0: allowed range (0.0, 1.0]"),
 ])
 def test_bad_scene_refused_naming_file_line_and_key(tmp_path: Path, old: str, new: str,
                                                     mark: str, needle: str) -> None:

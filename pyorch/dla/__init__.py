@@ -20,6 +20,7 @@ mass-radius counting from the seed (:mod:`pyorch.dla.fractal`, validated on know
 """
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -199,6 +200,8 @@ def dimension_ranges(run_dir: str | Path) -> pd.DataFrame:
     rmax = float(np.hypot(*(p - p[0]).T).max())
     rows: list[dict[str, Any]] = []
     for k, (lo_d, hi_f) in enumerate(MASS_RADIUS_RANGES):
+        if k > 0 and hi_f * rmax < 2 * lo_d * d0:
+            continue                                # too small an aggregate for this range
         f = fractal.mass_radius(p, p[0], lo_d * d0, hi_f * rmax)
         rows.append({"estimator": "mass_radius", "range": f"[{lo_d:g} d, R_max/{1 / hi_f:g}]",
                      "lo": f.lo, "hi": f.hi, "D": f.d, "fit_err": f.err, "central": k == 0})
@@ -267,8 +270,13 @@ def save_run_plots(run_dir: str | Path, out: str | Path | None = None,
     if has_agg and len(aggregate(run_dir)) > 60:
         ag = aggregate(run_dir)
         p = ag[["x", "y"]].to_numpy()
-        dims = dimensions(run_dir)
-        span = dimension_ranges(run_dir).groupby("estimator")["D"].agg(["min", "max"])
+        try:
+            dims = dimensions(run_dir)
+            span = dimension_ranges(run_dir).groupby("estimator")["D"].agg(["min", "max"])
+        except ValueError as exc:               # an aggregate too small to fit a slope
+            print(f"pyorch: {run_dir}: dimension.png skipped: {exc}", file=sys.stderr)
+            has_agg = False
+    if has_agg and len(aggregate(run_dir)) > 60:
 
         def label(est: str, d: float) -> str:
             lo, hi = span.loc[est, "min"], span.loc[est, "max"]
