@@ -122,6 +122,9 @@ def test_lj_field_colour_scale_is_linear_from_zero_for_a_mild_field():
                        "fx": [0.5, 1.0], "fy": [0.0, 0.0]})
     norm = lj.field_norm(np.hypot(fd["fx"], fd["fy"]))
     assert not isinstance(norm, LogNorm) and (norm.vmin, norm.vmax) == (0.0, 1.0)
+    # a wave's node: round-off magnitudes do not stretch the log scale beyond 4 decades
+    norm = lj.field_norm([1e-17, 0.01, 0.5, 1.0])
+    assert isinstance(norm, LogNorm) and (norm.vmin, norm.vmax) == pytest.approx((1e-4, 1.0))
 
 
 @pytest.fixture(scope="module")

@@ -1,6 +1,6 @@
 """examples/tour.ipynb executes top to bottom without an error (nbclient, a fresh
 ipykernel of this venv): a scene, a run, its figures, a small sweep and its analysis for
-each kind. The notebook's own cells assert what they show (the oscillator's error against
+each kind (lj_box: a run and its figures). The notebook's own cells assert what they show (the oscillator's error against
 the exact solution and its order of convergence, a complete aggregate, ...), so a cell
 whose result drifts fails here too.
 """
@@ -41,4 +41,6 @@ def test_tour_notebook_executes(tmp_path, monkeypatch):
     assert images >= 8, f"expected the figures of every kind, got {images} images"
     for kind in ("oscillator", "bed", "dla", "rods"):
         assert (tmp_path / "tour" / f"sweep_{kind}" / "results.csv").is_file(), kind
+    for fig in ("trajectories", "speeds", "energy", "field"):      # lj_box: a run, its figures
+        assert (tmp_path / "tour" / "lj_box" / "plots" / f"{fig}.png").is_file(), fig
     print(f"\nexamples/tour.ipynb executed in {elapsed:.1f} s")

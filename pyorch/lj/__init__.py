@@ -216,11 +216,13 @@ def field_arrows(fd: pd.DataFrame, snapshots: int = 4) -> list[pd.DataFrame]:
     return [fd[fd["step"] == st].reset_index(drop=True) for st in shown]
 
 
-def field_norm(mag: ArrayLike, decades: float = 1.0) -> Any:
+def field_norm(mag: ArrayLike, decades: float = 1.0, max_decades: float = 4.0) -> Any:
     """Colour scale of the field's magnitude |F_ext| [m g] for :func:`field_figure`: linear
     from 0 when the nonzero magnitudes span less than ``decades`` decades, else logarithmic
-    between the smallest nonzero and the largest (a point field's r^-power near its centre
-    would leave every other arrow at the bottom of a linear scale)."""
+    from the smallest nonzero one (but at most ``max_decades`` below the largest: a wave's
+    node gives round-off magnitudes of 1e-17 that would flatten the rest) to the largest.
+    A point field's r^-power near its centre would leave every other arrow at the bottom of
+    a linear scale."""
     from matplotlib.colors import LogNorm, Normalize
 
     m = np.asarray(mag, float)
@@ -229,7 +231,7 @@ def field_norm(mag: ArrayLike, decades: float = 1.0) -> Any:
         return Normalize(0.0, 1.0)
     lo, hi = float(pos.min()), float(pos.max())
     if hi > lo * 10.0**decades:
-        return LogNorm(lo, hi)
+        return LogNorm(max(lo, hi * 10.0**-max_decades), hi)
     return Normalize(0.0, hi)
 
 
@@ -247,7 +249,8 @@ def field_figure(fd: pd.DataFrame, side: float, full: bool = False) -> Any:
     snaps = field_arrows(fd, 12 if full else 4)
     ncol = min(len(snaps), 4)
     nrow = -(-len(snaps) // ncol)
-    fig, axes = plt.subplots(nrow, ncol, figsize=(3.6 * ncol, 3.4 * nrow), squeeze=False)
+    fig, axes = plt.subplots(nrow, ncol, figsize=(3.3 * ncol + 0.9, 3.2 * nrow), squeeze=False,
+                             layout="constrained")
     norm = field_norm(np.hypot(fd["fx"], fd["fy"]))
     cmap = ListedColormap(plt.get_cmap("viridis")(np.linspace(0.0, 0.85, 256)))
     xs = np.unique(fd["x"].to_numpy())
@@ -260,7 +263,7 @@ def field_figure(fd: pd.DataFrame, side: float, full: bool = False) -> Any:
         if nz.any():
             ax.quiver(x[nz], y[nz], fx[nz] / mag[nz], fy[nz] / mag[nz], mag[nz], cmap=cmap,
                       norm=norm, angles="xy", scale_units="xy", scale=1.0 / (0.8 * spacing),
-                      pivot="mid", width=0.006)
+                      pivot="mid", width=0.008)
         if (~nz).any():
             ax.plot(x[~nz], y[~nz], ".", color="0.5", ms=2)
         _box(ax, side)
