@@ -44,3 +44,23 @@ def test_tour_notebook_executes(tmp_path, monkeypatch):
     for fig in ("trajectories", "speeds", "energy", "field"):      # lj_box: a run, its figures
         assert (tmp_path / "tour" / "lj_box" / "plots" / f"{fig}.png").is_file(), fig
     print(f"\nexamples/tour.ipynb executed in {elapsed:.1f} s")
+
+
+def test_tour_has_a_section_for_every_kind():
+    """The README promises every kind in the tour (issue 30: lj_box was missing): one
+    '## `KIND`: ...' heading per kind of pyorch.kinds, each followed by a code cell that runs
+    a scene of that kind."""
+    from pyorch import kinds
+
+    nb = nbformat.read(NOTEBOOK, as_version=4)
+    sections: dict[str, str] = {}
+    current = None
+    for c in nb.cells:
+        if c.cell_type == "markdown" and c.source.startswith("## `"):
+            current = c.source.split("`")[1]
+            sections[current] = ""
+        elif c.cell_type == "code" and current is not None:
+            sections[current] += c.source
+    assert set(kinds.KINDS) <= set(sections), sorted(set(kinds.KINDS) - set(sections))
+    for kind in kinds.KINDS:
+        assert "run(" in sections[kind], kind
