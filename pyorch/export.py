@@ -6,6 +6,12 @@
   configuration/dimensions = 2, particles/N, types, typeid, diameter, position (z = 0) and
   velocity (z = 0). HOOMD boxes are centred on the origin: positions are shifted by
   (-Lx/2, -Ly/2). Floats are single precision (the schema's default) unless ``double``.
+  Per-particle properties computed by pyorch's analysis (:func:`particle_properties`) go to
+  ``log/particles/<name>`` arrays, which OVITO loads as particle properties (to colour by):
+  ``psi6_abs`` |psi6_j| [1] and ``n_neighbours`` (Voronoi neighbours, int32) of
+  :func:`pyorch.bed.analysis.psi6_per_particle`, ``voronoi_interior`` (int32 1/0: the cell
+  is kept by the thesis' Algorithm 4.3), and where the frames hold forces ``force_magnitude``
+  |F| [the kind's force unit] (from fx, fy) and the bed's ``fmag`` (|F_magnetic|).
 - extended XYZ with ASE's conventions: per frame ``N``, then
   ``Lattice="Lx 0 0 0 Ly 0 0 0 0" Properties=species:S:1:pos:R:3:vel:R:3:id:I:1:``
   ``type_name:S:1:diameter:R:1 step=.. time=.. pbc="F F F"``, positions in the run's own
@@ -18,10 +24,12 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
-from pyorch.trajectory import Trajectory, open_run
+from pyorch.trajectory import Frame, Trajectory, open_run
 
 FORMATS = ("gsd", "xyz")
 
@@ -30,13 +38,45 @@ SYMBOLS = ("H", "He", "Li", "Be", "B", "C", "N", "O", "F", "Ne", "Na", "Mg", "Al
            "S", "Cl", "Ar")
 
 
-def write_gsd(traj: Trajectory, out: str | Path, double: bool = False) -> Path:
-    """Write every frame of ``traj`` to a HOOMD-schema GSD file ``out``."""
+def particle_properties(f: Frame) -> dict[str, NDArray[Any]]:
+    """Per-particle properties of one frame, in the frame's particle order (each (N,)):
+    ``psi6_abs`` |psi6_j| [1], ``n_neighbours`` [1] and ``voronoi_interior`` (1 when the
+    Voronoi cell is kept by Algorithm 4.3, else 0) from
+    :func:`pyorch.bed.analysis.psi6_per_particle` with its default box and tolerance (what
+    :func:`pyorch.bed.analysis.frame_metrics` averages; NaN / 0 with fewer than
+    ``MIN_VORONOI_POINTS`` particles); ``force_magnitude`` = |(fx, fy)| when the frames
+    have fx and fy (:func:`pyorch.bed.analysis.force_magnitudes`), and ``fmag`` when they
+    have it (the bed's |F_magnetic|), in the kind's force unit."""
+    from pyorch.bed import analysis
+
+    out: dict[str, NDArray[Any]] = {}
+    if f.n >= analysis.MIN_VORONOI_POINTS:
+        t = analysis.psi6_per_particle(f.positions)
+        out["psi6_abs"] = t["psi6_abs"].to_numpy(dtype=float)
+        out["n_neighbours"] = t["n_neighbours"].to_numpy().astype(np.int32)
+        out["voronoi_interior"] = t["interior"].to_numpy().astype(np.int32)
+    else:
+        out["psi6_abs"] = np.full(f.n, np.nan)
+        out["n_neighbours"] = np.zeros(f.n, np.int32)
+        out["voronoi_interior"] = np.zeros(f.n, np.int32)
+    if "fx" in f.columns and "fy" in f.columns:
+        out["force_magnitude"] = analysis.force_magnitudes(f.columns["fx"], f.columns["fy"])
+    if "fmag" in f.columns:
+        out["fmag"] = np.asarray(f.columns["fmag"], dtype=float)
+    return out
+
+
+def write_gsd(traj: Trajectory, out: str | Path, double: bool = False,
+              properties: bool = True) -> Path:
+    """Write every frame of ``traj`` to a HOOMD-schema GSD file ``out``; with ``properties``
+    also :func:`particle_properties` of each frame as ``log/particles/<name>`` (floats in
+    the file's precision)."""
     import gsd.hoomd
 
     out = Path(out)
     lx, ly = traj.spec.box
     kw = {"precision": "double"} if double else {}
+    real = np.float64 if double else np.float32
     with gsd.hoomd.open(str(out), mode="w", **kw) as g:
         for f in traj:
             fr = gsd.hoomd.Frame()
@@ -54,6 +94,9 @@ def write_gsd(traj: Trajectory, out: str | Path, double: bool = False) -> Path:
             vel[:, :2] = f.velocities
             fr.particles.position = pos
             fr.particles.velocity = vel
+            if properties:
+                for name, v in particle_properties(f).items():
+                    fr.log[f"particles/{name}"] = v.astype(real) if v.dtype.kind == "f" else v
             g.append(fr)
     return out
 
@@ -82,9 +125,10 @@ def write_xyz(traj: Trajectory, out: str | Path) -> Path:
 
 
 def export(run_dir: str | Path, fmt: str, out: str | Path | None = None,
-           double: bool = False) -> Path:
+           double: bool = False, properties: bool = True) -> Path:
     """Export the frames of ``run_dir`` as ``fmt`` ('gsd' | 'xyz') to ``out`` (default
-    RUN_DIR/frames.gsd or RUN_DIR/frames.xyz); returns the path written."""
+    RUN_DIR/frames.gsd or RUN_DIR/frames.xyz); GSD with the per-particle ``properties``
+    unless False. Returns the path written."""
     from pyorch import SceneError
 
     if fmt not in FORMATS:
@@ -95,7 +139,7 @@ def export(run_dir: str | Path, fmt: str, out: str | Path | None = None,
         tmp = out.with_name(out.name + ".part")
         try:
             if fmt == "gsd":
-                write_gsd(traj, tmp, double=double)
+                write_gsd(traj, tmp, double=double, properties=properties)
             else:
                 write_xyz(traj, tmp)
             tmp.replace(out)   # nothing half-written under the final name
@@ -112,8 +156,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     e.add_argument("-o", "--out", type=Path, default=None,
                    help="output file (default RUN_DIR/frames.gsd|frames.xyz)")
     e.add_argument("--double", action="store_true", help="GSD: float64 (default float32)")
+    e.add_argument("--no-properties", dest="properties", action="store_false",
+                   help="GSD: without the per-particle psi6_abs, n_neighbours, "
+                        "voronoi_interior, force_magnitude, fmag (log/particles/*)")
 
 
 def cmd_export(args: argparse.Namespace) -> int:
-    print(export(args.run_dir, args.fmt, args.out, double=args.double))
+    print(export(args.run_dir, args.fmt, args.out, double=args.double,
+                 properties=args.properties))
     return 0

@@ -35,12 +35,26 @@ def _run(base: str, over: dict[str, Any], out: Path) -> Path:
     return run(Scene.read(ROOT / "runs" / base).with_overrides(over), out, progress=False).dir
 
 
+SCENES = {"bed_bin": ("demo.nml", {**BED, "output.frames_format": "binary"}),
+          "bed_txt": ("demo.nml", {**BED, "output.frames_format": "text"}),
+          "dla": ("dla.nml", {**DLA, "output.frames_format": "binary"})}
+
+
+class _Runs(dict):
+    """The test runs of SCENES, each made on first use (a bed test needs no dla run)."""
+
+    def __init__(self, base: Path):
+        super().__init__()
+        self.base = base
+
+    def __missing__(self, key: str) -> Path:
+        self[key] = _run(*SCENES[key], self.base / key)
+        return self[key]
+
+
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
-    base = tmp_path_factory.mktemp("export")
-    return {"bed_bin": _run("demo.nml", {**BED, "output.frames_format": "binary"}, base / "bb"),
-            "bed_txt": _run("demo.nml", {**BED, "output.frames_format": "text"}, base / "bt"),
-            "dla": _run("dla.nml", {**DLA, "output.frames_format": "binary"}, base / "d")}
+    return _Runs(tmp_path_factory.mktemp("export"))
 
 
 def _pyorch(*args: str) -> subprocess.CompletedProcess[str]:
@@ -77,6 +91,51 @@ def test_gsd_double_precision_is_exact(runs, tmp_path):
         for f, e in zip(g, tr):
             assert f.particles.position.dtype == np.float64
             assert np.array_equal(f.particles.position[:, 0], e.positions[:, 0] - 10.0)
+
+
+def test_gsd_holds_per_particle_properties_equal_to_pyorch_analysis(runs, tmp_path):
+    """Issue 30: |psi6_j|, the Voronoi neighbour count and the force magnitude per particle
+    as log/particles/* (what OVITO loads as particle properties), equal to pyorch's analysis
+    of the same frame read through pyorch.io."""
+    from pyorch.bed import analysis
+
+    out = export(runs["bed_bin"], "gsd", tmp_path / "bed.gsd", double=True)
+    fr = io.frames(runs["bed_bin"])
+    names = {"psi6_abs", "n_neighbours", "voronoi_interior", "force_magnitude", "fmag"}
+    with gsd_hoomd.open(str(out), "r") as g:
+        assert len(g) > 2
+        for f in g:
+            assert set(f.log) == {f"particles/{n}" for n in names}
+            rows = fr[fr["step"] == f.configuration.step]
+            t = analysis.psi6_per_particle(rows[["x", "y"]].to_numpy(), ids=rows["id"].to_numpy())
+            for n in names:
+                assert f.log[f"particles/{n}"].shape == (60,), n
+            assert f.log["particles/psi6_abs"].dtype == np.float64
+            np.testing.assert_array_equal(f.log["particles/psi6_abs"], t["psi6_abs"])
+            assert f.log["particles/n_neighbours"].dtype == np.int32
+            np.testing.assert_array_equal(f.log["particles/n_neighbours"], t["n_neighbours"])
+            np.testing.assert_array_equal(f.log["particles/voronoi_interior"], t["interior"])
+            np.testing.assert_array_equal(f.log["particles/force_magnitude"],
+                                          np.hypot(rows["fx"], rows["fy"]))
+            np.testing.assert_array_equal(f.log["particles/fmag"], rows["fmag"])
+            # the per-particle values are those frame_metrics averages
+            interior = f.log["particles/voronoi_interior"] == 1
+            m = analysis.frame_metrics(rows)
+            assert m["Psi6_local"] == pytest.approx(f.log["particles/psi6_abs"][interior].mean())
+            assert 4 <= np.median(f.log["particles/n_neighbours"][interior]) <= 7
+    import gsd.fl
+
+    with gsd.fl.open(str(out), "r") as h:        # the chunk names OVITO reads
+        assert set(h.find_matching_chunk_names("log/")) == {f"log/particles/{n}" for n in names}
+    # single precision by default; without the properties on request
+    out32 = export(runs["bed_bin"], "gsd", tmp_path / "bed32.gsd")
+    plain = export(runs["bed_bin"], "gsd", tmp_path / "plain.gsd", properties=False)
+    with gsd_hoomd.open(str(out32), "r") as g, gsd_hoomd.open(str(plain), "r") as h:
+        f = g[-1]
+        rows = fr[fr["step"] == f.configuration.step]
+        assert f.log["particles/fmag"].dtype == np.float32
+        np.testing.assert_array_equal(f.log["particles/fmag"], rows["fmag"].to_numpy(np.float32))
+        assert h[-1].log == {}
 
 
 def test_xyz_of_the_bed_reads_back_with_ase(runs, tmp_path):

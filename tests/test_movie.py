@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from pyorch import SceneError, dla
-from pyorch.movie import save_movie
+from pyorch.movie import movie_frames, save_movie
 from pyorch.run import run
 from pyorch.scene import Scene
 from pyorch.trajectory import open_run
@@ -32,10 +32,22 @@ def _run(base: str, over: dict[str, Any], out: Path) -> Path:
     return run(Scene.read(ROOT / "runs" / base).with_overrides(over), out, progress=False).dir
 
 
+class _Runs(dict):
+    """The test runs, each made on first use (a test of one kind does not need the other)."""
+
+    def __init__(self, base: Path):
+        super().__init__()
+        self.base = base
+
+    def __missing__(self, key: str) -> Path:
+        base, over = {"bed": ("demo.nml", BED), "dla": ("dla.nml", DLA)}[key]
+        self[key] = _run(base, over, self.base / key)
+        return self[key]
+
+
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
-    base = tmp_path_factory.mktemp("movie")
-    return {"bed": _run("demo.nml", BED, base / "bed"), "dla": _run("dla.nml", DLA, base / "d")}
+    return _Runs(tmp_path_factory.mktemp("movie"))
 
 
 def _n_frames(path: Path) -> int:
@@ -78,6 +90,43 @@ def test_dla_gif_through_the_cli_and_save_growth_movie(runs, tmp_path):
     old = dla.save_growth_movie(runs["dla"], tmp_path / "g2.gif", fps=10)
     frames = imageio.imread(old, index=None)
     assert frames.shape[0] == n and np.ptp(frames) > 0      # not a blank movie
+
+
+def test_a_movie_frame_has_a_colour_bar_naming_the_quantity_and_its_unit(runs):
+    """Issue 30: the movie's colours had no scale. Every frame carries one colour bar whose
+    range is the colour values' range over the whole movie and whose label names the
+    quantity and its unit."""
+    with open_run(runs["bed"]) as tr:
+        speeds = [np.hypot(f.velocities[:, 0], f.velocities[:, 1]) for f in tr[::2]]
+        frames = movie_frames(tr, every=2, color_by="speed")
+        for k, fig in zip(range(2), frames):
+            ax, cax = fig.axes
+            assert cax.get_ylabel() == "speed $|v|$ [D1/T]"
+            assert cax.get_ylim() == pytest.approx((min(map(np.min, speeds)),
+                                                   max(map(np.max, speeds))))
+            disks = ax.collections[0]
+            assert np.array_equal(disks.get_array(), speeds[k])
+            assert disks.norm.vmin == pytest.approx(cax.get_ylim()[0])
+            assert ax.get_xlabel() == "$x$ [D1]" and ax.get_ylabel() == "$y$ [D1]"
+        frames.close()
+    import matplotlib.pyplot as plt
+
+    assert fig.number not in plt.get_fignums()       # the generator closes its figure
+
+
+def test_a_movie_coloured_by_type_labels_each_type_on_its_colour_bar(runs):
+    with open_run(runs["bed"]) as tr:
+        frames = movie_frames(tr, every=3, color_by="type")
+        fig = next(frames)
+        ax, cax = fig.axes
+        assert cax.get_ylabel() == "type"
+        assert [t.get_text() for t in cax.get_yticklabels()] == ["species1"]
+        assert list(cax.get_yticks()) == [0]
+        frames.close()
+        # a frame column with a unit: the unit from the file's header
+        frames = movie_frames(tr, every=3, color_by="fmag")
+        assert next(frames).axes[1].get_ylabel() == f"fmag [{tr.units['fmag']}]" != "fmag"
+        frames.close()
 
 
 def test_default_movie_path(runs):

@@ -50,14 +50,18 @@ def force_vs_phi(piston_df: pd.DataFrame) -> Figure:
 
 
 def time_series(df: pd.DataFrame, column: str, ylabel: str, piston_df: pd.DataFrame | None = None) -> Figure:
-    """A column against time, with the protocol phases shaded when the piston history is given."""
+    """A column against time, with the protocol phases (compress, expand) shaded and named in the
+    legend when the piston history is given."""
     fig, ax = plt.subplots(figsize=(6, 3.6))
     ax.plot(df["t"], df[column], lw=1, color="k")
     if piston_df is not None:
         for code, colour in ((2, "tab:red"), (4, "tab:blue")):
             part = piston_df[piston_df["phase"] == code]
             if not part.empty:
-                ax.axvspan(part["t"].min(), part["t"].max(), color=colour, alpha=0.08, lw=0)
+                ax.axvspan(part["t"].min(), part["t"].max(), color=colour, alpha=0.08, lw=0,
+                           label=f"{io.PHASES[code]} (shaded)")
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(frameon=False, fontsize="small")
     ax.set_xlabel(r"$t$ [$T=\sqrt{D_1/g}$]")
     ax.set_ylabel(ylabel)
     fig.tight_layout()

@@ -440,12 +440,16 @@ def _abscissa(ts: pd.DataFrame, x: str | None) -> tuple[np.ndarray, str]:
     return col.to_numpy(dtype=float), label
 
 
-def _shade_phases(ax: Axes, ts: pd.DataFrame, xs: np.ndarray, piston_df: pd.DataFrame | None) -> None:
-    """Shade compression (red) and expansion (blue) over time.
+def _shade_phases(ax: Axes, ts: pd.DataFrame, xs: np.ndarray, piston_df: pd.DataFrame | None,
+                  label: bool = True) -> None:
+    """Shade compression (red) and expansion (blue) over time, labelled with the phase names of
+    :data:`pyorch.io.PHASES` for the legend (``label=False``: unlabelled, e.g. on a second panel).
 
     The phase spans come from ``piston_df`` (columns ``t``, ``phase``) when given, else from a ``phase``
-    column of ``ts`` (then they are only as fine as the frames).
+    column of ``ts`` (then they are only as fine as the frames). Call before ``ax.legend``.
     """
+    from pyorch.io import PHASES
+
     src_t, src_ph = (piston_df["t"].to_numpy(float), piston_df["phase"].to_numpy()) \
         if piston_df is not None else (xs, ts["phase"].to_numpy() if "phase" in ts.columns else None)
     if src_ph is None:
@@ -453,7 +457,8 @@ def _shade_phases(ax: Axes, ts: pd.DataFrame, xs: np.ndarray, piston_df: pd.Data
     for code, colour in ((2, "tab:red"), (4, "tab:blue")):
         sel = src_ph == code
         if sel.any():
-            ax.axvspan(src_t[sel].min(), src_t[sel].max(), color=colour, alpha=0.08, lw=0)
+            ax.axvspan(src_t[sel].min(), src_t[sel].max(), color=colour, alpha=0.08, lw=0,
+                       label=f"{PHASES[code]} (shaded)" if label else "_nolegend_")
 
 
 def order_vs_time(ts_df: pd.DataFrame, *, x: str | None = None,
@@ -477,17 +482,17 @@ def order_vs_time(ts_df: pd.DataFrame, *, x: str | None = None,
         a.plot(xs, ts_df[col], marker=marker, ms=3.5, lw=1, color=colour, label=f"$n_{col[1]}$")
     a.set_ylabel("fraction of interior cells")
     a.set_ylim(0, 1)
-    a.legend(frameon=False, ncols=3)
     b.plot(xs, ts_df["Psi6"], lw=1, marker="o", ms=3, color="k", label=r"$\Psi_6 = |\langle\psi_6\rangle|$")
     if "Psi6_local" in ts_df.columns:
         b.plot(xs, ts_df["Psi6_local"], lw=1, ls="--", color="0.4", label=r"$\langle|\psi_6|\rangle$")
     b.set_ylabel(r"$\Psi_6$")
     b.set_ylim(0, 1)
     b.set_xlabel(xlabel)
-    b.legend(frameon=False)
     if x is None:
         _shade_phases(a, ts_df, xs, piston_df)
-        _shade_phases(b, ts_df, xs, piston_df)
+        _shade_phases(b, ts_df, xs, piston_df, label=False)
+    a.legend(frameon=False, ncols=3)
+    b.legend(frameon=False)
     return fig
 
 
@@ -507,9 +512,9 @@ def r6_vs_time(ts_df: pd.DataFrame, *, x: str | None = None,
     ax.plot(xs, m - s, color="tab:green", lw=0.9, ls="--")
     ax.set_xlabel(xlabel)
     ax.set_ylabel(r"hexagon regularity $\mathcal{R}_6$")
-    ax.legend(frameon=False)
     if x is None:
         _shade_phases(ax, ts_df, xs, piston_df)
+    ax.legend(frameon=False)
     return fig
 
 

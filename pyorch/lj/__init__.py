@@ -32,8 +32,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from pyorch import RunError, io
 
-__all__ = ["frames", "frame_spec", "has_frames", "energy", "field", "field_arrows", "Trajectory",
-           "trajectory", "positions", "box_side", "scene", "maxwell_speed_pdf", "speed_table",
+__all__ = ["frames", "frame_spec", "has_frames", "energy", "field", "field_arrows", "field_figure",
+           "field_norm", "Trajectory", "trajectory", "positions", "box_side", "scene", "maxwell_speed_pdf", "speed_table",
            "save_run_plots", "write_tables", "METRIC_KEYS", "default_metrics"]
 
 F64 = NDArray[np.float64]
@@ -216,23 +216,69 @@ def field_arrows(fd: pd.DataFrame, snapshots: int = 4) -> list[pd.DataFrame]:
     return [fd[fd["step"] == st].reset_index(drop=True) for st in shown]
 
 
-def _plot_field(fd: pd.DataFrame, side: float, path: Path, full: bool) -> Path:
+def field_norm(mag: ArrayLike, decades: float = 1.0, max_decades: float = 4.0) -> Any:
+    """Colour scale of the field's magnitude |F_ext| [m g] for :func:`field_figure`: linear
+    from 0 when the nonzero magnitudes span less than ``decades`` decades, else logarithmic
+    from the smallest nonzero one (but at most ``max_decades`` below the largest: a wave's
+    node gives round-off magnitudes of 1e-17 that would flatten the rest) to the largest.
+    A point field's r^-power near its centre would leave every other arrow at the bottom of
+    a linear scale."""
+    from matplotlib.colors import LogNorm, Normalize
+
+    m = np.asarray(mag, float)
+    pos = m[m > 0]
+    if pos.size == 0:
+        return Normalize(0.0, 1.0)
+    lo, hi = float(pos.min()), float(pos.max())
+    if hi > lo * 10.0**decades:
+        return LogNorm(max(lo, hi * 10.0**-max_decades), hi)
+    return Normalize(0.0, hi)
+
+
+def field_figure(fd: pd.DataFrame, side: float, full: bool = False) -> Any:
+    """Figure of the engine's ``field.dat`` (up to 4 snapshots, 12 with ``full``): at every
+    grid node an arrow of fixed length (0.8 grid spacings [a]) along F_ext, coloured by
+    |F_ext| [m g] on one scale for every snapshot (:func:`field_norm`), with its colour bar;
+    a node where the field is zero gets a dot. The length shows no magnitude (drawn to
+    scale, one strong node shrinks every other arrow to nothing), and the colour map stops
+    short of viridis' palest yellow (magma's pale top hid the strongest arrows on white)."""
     import matplotlib.pyplot as plt
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import ListedColormap
 
     snaps = field_arrows(fd, 12 if full else 4)
     ncol = min(len(snaps), 4)
     nrow = -(-len(snaps) // ncol)
-    fig, axes = plt.subplots(nrow, ncol, figsize=(3.6 * ncol, 3.4 * nrow), squeeze=False)
-    mag_max = float(np.hypot(fd["fx"], fd["fy"]).max()) or 1.0
+    fig, axes = plt.subplots(nrow, ncol, figsize=(3.3 * ncol + 0.9, 3.2 * nrow), squeeze=False,
+                             layout="constrained")
+    norm = field_norm(np.hypot(fd["fx"], fd["fy"]))
+    cmap = ListedColormap(plt.get_cmap("viridis")(np.linspace(0.0, 0.85, 256)))
+    xs = np.unique(fd["x"].to_numpy())
+    spacing = float(np.min(np.diff(xs))) if xs.size > 1 else side
     for ax, f in zip(axes.flat, snaps):
-        mag = np.hypot(f["fx"].to_numpy(), f["fy"].to_numpy())
-        q = ax.quiver(f["x"], f["y"], f["fx"], f["fy"], mag, cmap="magma", clim=(0, mag_max),
-                      angles="xy", pivot="mid")
+        x, y = f["x"].to_numpy(), f["y"].to_numpy()
+        fx, fy = f["fx"].to_numpy(), f["fy"].to_numpy()
+        mag = np.hypot(fx, fy)
+        nz = mag > 0
+        if nz.any():
+            ax.quiver(x[nz], y[nz], fx[nz] / mag[nz], fy[nz] / mag[nz], mag[nz], cmap=cmap,
+                      norm=norm, angles="xy", scale_units="xy", scale=1.0 / (0.8 * spacing),
+                      pivot="mid", width=0.008)
+        if (~nz).any():
+            ax.plot(x[~nz], y[~nz], ".", color="0.5", ms=2)
         _box(ax, side)
         ax.set_title(f"t = {float(f['t'].iloc[0]):.3g} T", fontsize=9)
     for ax in list(axes.flat)[len(snaps):]:
         ax.set_visible(False)
-    fig.colorbar(q, ax=axes, label=r"$|F_{ext}|$ [$m g$]", shrink=0.8)
+    fig.colorbar(ScalarMappable(norm=norm, cmap=cmap), ax=axes, shrink=0.8,
+                 label=r"$|F_{ext}|$ [$m g$] (arrows: direction)")
+    return fig
+
+
+def _plot_field(fd: pd.DataFrame, side: float, path: Path, full: bool) -> Path:
+    import matplotlib.pyplot as plt
+
+    fig = field_figure(fd, side, full)
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path

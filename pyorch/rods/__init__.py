@@ -15,6 +15,7 @@ from __future__ import annotations
 import sys
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -297,12 +298,67 @@ def _steady_densities(b: pd.DataFrame, ss: dict[str, float], p: Params) -> dict[
             "omega": gaussian(b["omega"], 0.0, temp / p.inertia)}
 
 
+#: the distributions' panels: column, density column, x label, y label (units m, L, t0)
+_PANELS = (("vx", "f_vx", r"$v_x$ [$L/t_0$]", r"$f(v_x)$ [$t_0/L$]"),
+           ("vy", "f_vy", r"$v_y$ [$L/t_0$]", r"$f(v_y)$ [$t_0/L$]"),
+           ("speed", "f_speed", r"$|v|$ [$L/t_0$]", r"$f(|v|)$ [$t_0/L$]"),
+           ("theta", "f_theta", r"$\theta$ [rad]", r"$f(\theta)$ [1/rad]"),
+           ("omega", "f_omega", r"$\omega$ [rad/$t_0$]", r"$f(\omega)$ [$t_0$/rad]"))
+
+
+def distributions_figure(run_dir: str | Path, p: Params,
+                         ss: dict[str, float] | None) -> Any:
+    """The slides' distributions of v_x, v_y, |v|, theta, omega (points: the first three)
+    from ``histograms.dat``: initial (grey dashed), numerical at the end (black circles),
+    exact steady state (red, when ``ss`` is given), every panel labelled with its units."""
+    import matplotlib.pyplot as plt
+
+    run_dir = Path(run_dir)
+    hist = histograms(run_dir)
+    a, b = snapshot(hist, "first"), snapshot(hist, "last")
+    panels = _PANELS if p.rotation else _PANELS[:3]
+    exact = _steady_densities(b, ss, p) if ss is not None else {}
+    fig, axes = plt.subplots(1, len(panels), figsize=(3.0 * len(panels), 2.9))
+    for ax, (x, f, xlab, ylab) in zip(np.atleast_1d(axes), panels):
+        ax.plot(a[x], a[f], "--", color="0.55", lw=1.2, label="initial")
+        ax.plot(b[x], b[f], "o", mfc="none", mec="k", ms=3.5, label=f"t = {b['t'][0]:g} $t_0$")
+        if x in exact:
+            ax.plot(b[x], exact[x], "-", color="r", lw=1.2, label="exact steady")
+        ax.set_xlabel(xlab)
+        ax.set_ylabel(ylab)
+        ax.set_ylim(bottom=0)
+    np.atleast_1d(axes)[0].legend(frameon=False, fontsize=7)
+    fig.suptitle(Scene.read(run_dir / "scene.nml").get("scene", "title"), fontsize=9)
+    fig.tight_layout()
+    return fig
+
+
+def history_figure(h: pd.DataFrame, temp: float) -> Any:
+    """Temperatures T_trans, T_rot [m L^2/t0^2] (and the exact steady ``temp``), the order
+    parameters S1, S2 [1] and Boltzmann's H [1] of (v, omega) against t [t0] (``history``)."""
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 3, figsize=(10, 2.9))
+    axes[0].plot(h["t"], h["T_trans"], label=r"$T_{trans}$")
+    axes[0].plot(h["t"], h["T_rot"], label=r"$T_{rot}$")
+    axes[0].axhline(temp, color="r", lw=0.8, label="steady T")
+    axes[0].set_ylabel(r"temperature [$m L^2/t_0^2$]")
+    axes[1].plot(h["t"], h["S1"], label=r"$|\langle e^{i\theta}\rangle|$")
+    axes[1].plot(h["t"], h["S2"], label=r"$|\langle e^{2i\theta}\rangle|$")
+    axes[1].set_ylabel("order parameter [1]")
+    axes[2].plot(h["t"], h["H"], label="H (v, omega)")
+    axes[2].set_ylabel("Boltzmann's $H$ [1]")
+    for ax in axes:
+        ax.set_xlabel(r"$t$ [$t_0$]")
+        ax.legend(frameon=False, fontsize=7)
+    fig.tight_layout()
+    return fig
+
+
 def save_run_plots(run_dir: str | Path, out: str | Path | None = None,
                    full: bool = False) -> list[Path]:
-    """The slides' figures: distributions of v_x, v_y, |v|, theta, omega - initial (grey dashed),
-    numerical at the end (black circles), exact steady state (red) - ``plots/distributions.png``,
-    and the history (temperatures, energy, order parameters, H) ``plots/history.png``
-    (``full`` adds nothing for this kind)."""
+    """The slides' figures: :func:`distributions_figure` as ``plots/distributions.png`` and
+    :func:`history_figure` as ``plots/history.png`` (``full`` adds nothing for this kind)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -318,48 +374,15 @@ def save_run_plots(run_dir: str | Path, out: str | Path | None = None,
         _say(f"{run_dir}: " + ", ".join(f"{f} not written ({_OFF_KEY[f]})" for f in missing)
              + ": " + _left_out(missing))
     ss = steady_state(run_dir) if "history.dat" not in missing else None
+    figures = []
     if "histograms.dat" not in missing:
-        hist = histograms(run_dir)
-        a, b = snapshot(hist, "first"), snapshot(hist, "last")
-        panels = [("vx", "f_vx", r"$v_x$"), ("vy", "f_vy", r"$v_y$"),
-                  ("speed", "f_speed", r"$|v|$"), ("theta", "f_theta", r"$\theta$"),
-                  ("omega", "f_omega", r"$\omega$")]
-        if not p.rotation:
-            panels = panels[:3]
-        exact = _steady_densities(b, ss, p) if ss is not None else {}
-        fig, axes = plt.subplots(1, len(panels), figsize=(3.0 * len(panels), 2.8))
-        for ax, (x, f, lab) in zip(np.atleast_1d(axes), panels):
-            ax.plot(a[x], a[f], "--", color="0.55", lw=1.2, label="initial")
-            ax.plot(b[x], b[f], "o", mfc="none", mec="k", ms=3.5, label=f"t = {b['t'][0]:g}")
-            if x in exact:
-                ax.plot(b[x], exact[x], "-", color="r", lw=1.2, label="exact steady")
-            ax.set_xlabel(lab)
-            ax.set_ylim(bottom=0)
-        np.atleast_1d(axes)[0].legend(frameon=False, fontsize=7)
-        fig.suptitle(Scene.read(run_dir / "scene.nml").get("scene", "title"), fontsize=9)
-        fig.tight_layout()
-        fig.savefig(out / "distributions.png", dpi=110)
-        plt.close(fig)
-        written.append(out / "distributions.png")
+        figures.append(("distributions.png", distributions_figure(run_dir, p, ss)))
     if ss is not None:
-        h = history(run_dir)
-        fig, axes = plt.subplots(1, 3, figsize=(10, 2.8))
-        axes[0].plot(h["t"], h["T_trans"], label=r"$T_{trans}$")
-        axes[0].plot(h["t"], h["T_rot"], label=r"$T_{rot}$")
-        axes[0].axhline(ss["T"], color="r", lw=0.8, label="steady T")
-        axes[0].set_xlabel("t")
-        axes[0].legend(frameon=False, fontsize=7)
-        axes[1].plot(h["t"], h["S1"], label=r"$|\langle e^{i\theta}\rangle|$")
-        axes[1].plot(h["t"], h["S2"], label=r"$|\langle e^{2i\theta}\rangle|$")
-        axes[1].set_xlabel("t")
-        axes[1].legend(frameon=False, fontsize=7)
-        axes[2].plot(h["t"], h["H"], label="H (v, omega)")
-        axes[2].set_xlabel("t")
-        axes[2].legend(frameon=False, fontsize=7)
-        fig.tight_layout()
-        fig.savefig(out / "history.png", dpi=110)
+        figures.append(("history.png", history_figure(history(run_dir), ss["T"])))
+    for name, fig in figures:
+        fig.savefig(out / name, dpi=110)
         plt.close(fig)
-        written.append(out / "history.png")
+        written.append(out / name)
     return written
 
 
