@@ -200,9 +200,12 @@ def dimension_ranges(run_dir: str | Path) -> pd.DataFrame:
     rmax = float(np.hypot(*(p - p[0]).T).max())
     rows: list[dict[str, Any]] = []
     for k, (lo_d, hi_f) in enumerate(MASS_RADIUS_RANGES):
-        if k > 0 and hi_f * rmax < 2 * lo_d * d0:
+        try:
+            f = fractal.mass_radius(p, p[0], lo_d * d0, hi_f * rmax)
+        except ValueError:
+            if k == 0:
+                raise
             continue                                # too small an aggregate for this range
-        f = fractal.mass_radius(p, p[0], lo_d * d0, hi_f * rmax)
         rows.append({"estimator": "mass_radius", "range": f"[{lo_d:g} d, R_max/{1 / hi_f:g}]",
                      "lo": f.lo, "hi": f.hi, "D": f.d, "fit_err": f.err, "central": k == 0})
     for k, (n_min, hi_f) in enumerate(RG_RANGES):
