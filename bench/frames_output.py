@@ -10,7 +10,7 @@ lists r_c 3), `--steps` steps with a frame every `--every` steps, one thread. Th
 and repeat: frames off, `frames_format = 'text'` (particles.dat), `'binary'`
 (particles.bin); the write cost of one frame is (wall time with frames - wall time without)
 / frames, from run.json's wall_time_s, best of `--repeat`. Bytes per frame from the file
-sizes. Reading: pyorch.io.frames (the whole file as one long DataFrame; text parsed by pandas'
+sizes. Reading: pyorch.bed_readers.frames (the whole file as one long DataFrame; text parsed by pandas'
 C reader, binary memory-mapped), and one frame of the lazy pyorch.trajectory reader (open +
 the last frame). The binary frames must equal the text frames bit for bit (checked; exit 1
 otherwise). Writes bench/results/frames_output.csv.
@@ -28,6 +28,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import common  # noqa: E402
 import scaling  # noqa: E402
+from pyorch.bed import readers as bed_readers
 
 SCENE = common.REPO / "runs" / "bench_compression.nml"
 
@@ -53,12 +54,12 @@ def best_wall(scene: Any, out: Path, repeat: int) -> tuple[float, Path]:
 
 
 def read_times(run_dir: Path) -> tuple[float, float]:
-    """Seconds for pyorch.io.frames (all frames) and for open + last frame (lazy reader)."""
+    """Seconds for pyorch.bed_readers.frames (all frames) and for open + last frame (lazy reader)."""
     from pyorch import io
     from pyorch.trajectory import open_run
 
     t0 = time.perf_counter()
-    io.frames(run_dir)
+    bed_readers.frames(run_dir)
     t1 = time.perf_counter()
     with open_run(run_dir) as tr:
         tr[-1]

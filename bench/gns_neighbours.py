@@ -8,8 +8,8 @@ Reproduce (from the repository root; the dataset first, about 2.5 minutes on 2 w
     OMP_NUM_THREADS=1 taskset -c 1 .venv/bin/python bench/gns_neighbours.py \\
         runs/out/datasets/gns_train --target 15 --samples 100 300 1000 3000
 
-For the legacy sample (frame 0 of the first 200 training trajectories: what pyorch.gns used
-before issue 26) and for pyorch.gns.sample_frames with each ``--samples`` budget: the radius
+For the legacy sample (frame 0 of the first 200 training trajectories: what pyorch.lj.gns used
+before issue 26) and for pyorch.lj.gns.sample_frames with each ``--samples`` budget: the radius
 for ``--target`` neighbours and the time to compute it (frame selection, pair distances,
 bisection), then the reference, the mean neighbour count at that radius over every frame of
 every training trajectory (and over ``--ranges`` equal ranges of the frame index), and its
@@ -32,7 +32,7 @@ from scipy.spatial.distance import pdist
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import common  # noqa: E402
 
-from pyorch import gns  # noqa: E402
+from pyorch.lj import gns  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results"
 

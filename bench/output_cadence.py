@@ -40,6 +40,7 @@ import pandas as pd
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import common  # noqa: E402
+from pyorch.bed import readers as bed_readers
 
 SCENE = common.REPO / "runs" / "bench_compression.nml"
 PRODUCTION = {"integration.neighbour": "verlet", "integration.r_cut": 4.13,
@@ -76,7 +77,7 @@ def n6_mean(run_dir: Path, piston: pd.DataFrame) -> tuple[float, int]:
 
     steps = set(piston.loc[piston["phase"].eq(2), "step"])
     lo, hi = min(steps), max(steps)
-    fr = io.frames(run_dir)
+    fr = bed_readers.frames(run_dir)
     fr = fr[(fr["step"] >= lo) & (fr["step"] <= hi)]
     vals = [float(frame_metrics(g)["n6"]) for _, g in fr.groupby("step")]
     return (float(np.mean(vals)) if vals else float("nan")), len(vals)
@@ -96,17 +97,17 @@ def measure(family: str, cadence: int, piston_every: int, distance_every: int,
         if best is None or t.wall_s < best[0].wall_s:
             best = (t, d)
     timing, d = best
-    last = io.frame_at(io.frames(d)).sort_values("id")[["x", "y"]].to_numpy()
+    last = io.frame_at(bed_readers.frames(d)).sort_values("id")[["x", "y"]].to_numpy()
     row = {"family": family, "cadence": cadence, "time_per_step_s": timing.per_step_s,
            "bytes": sum(p.stat().st_size for p in d.glob("*.dat")), "F_max": float("nan"),
            "work": float("nan"), "D_hat_min": float("nan"), "n6_mean": float("nan"), "frames": 0}
     if piston_every > 0:
-        piston = io.piston(d)
+        piston = bed_readers.piston(d)
         row.update(F_max=float(piston["F_piston"].max()), work=compression_work(piston))
         if family == "frames":
             row["n6_mean"], row["frames"] = n6_mean(d, piston)
     if distance_every > 0:
-        row["D_hat_min"] = float(io.mean_distance(d)["D_hat"].min())
+        row["D_hat_min"] = float(bed_readers.mean_distance(d)["D_hat"].min())
     return row, last
 
 

@@ -52,6 +52,7 @@ from pyorch import io  # noqa: E402
 from pyorch.bed.analysis import fit_linear, frame_metrics, pearson  # noqa: E402
 from pyorch.run import resume, run  # noqa: E402
 from pyorch.scene import Scene  # noqa: E402
+from pyorch.bed import readers as bed_readers
 
 MM_PER_S_6MM = 1e-3 * math.sqrt(6e-3 / 9.8) / 6e-3   # 1 mm/s in D1/T, D1 = 6 mm
 MM_PER_S_5MM = 1e-3 * math.sqrt(5e-3 / 9.8) / 5e-3   # 1 mm/s in D1/T, D1 = 5 mm
@@ -199,8 +200,8 @@ def force_unit_n(run_dir: Path) -> float:
 def cycle_measures(run_dir: Path) -> dict[str, float]:
     """F_max [N] over every piston.dat row; D_hat [D1] at the start of compression,
     minimum, end of expansion; n5/n6/n7/Psi6/R6 of the frame at maximum compression."""
-    pis = io.piston(run_dir)
-    md = io.mean_distance(run_dir) if (run_dir / "mean_distance.dat").is_file() else pd.DataFrame()
+    pis = bed_readers.piston(run_dir)
+    md = bed_readers.mean_distance(run_dir) if (run_dir / "mean_distance.dat").is_file() else pd.DataFrame()
     out = {"F_max_N": float(pis["F_piston"].max()) * force_unit_n(run_dir),
            "H_at_F_max": float(pis.loc[pis["F_piston"].idxmax(), "H"])}
     comp = pis[pis["phase"] == 2]
@@ -211,7 +212,7 @@ def cycle_measures(run_dir: Path) -> dict[str, float]:
         exp = pis[pis["phase"] == 4]
         if not exp.empty:
             out["D3"] = near(int(exp["step"].iloc[-1]))
-    frames = io.frames(run_dir)
+    frames = bed_readers.frames(run_dir)
     steps = np.sort(frames["step"].unique())
     turn = int(comp["step"].iloc[-1]) if not comp.empty else int(steps[-1])
     step = int(steps[np.abs(steps - turn).argmin()])

@@ -70,9 +70,13 @@ def _parser() -> argparse.ArgumentParser:
 
     add_sweep_parser(sub)
 
-    from pyorch.gns import add_parser as add_dataset_parser
+    import importlib
 
-    add_dataset_parser(sub)
+    from pyorch.kinds import KINDS
+
+    for kind in KINDS.values():                 # a kind's own commands (e.g. lj_box: dataset)
+        for module in kind.commands:
+            importlib.import_module(module).add_parser(sub)
 
     from pyorch.export import add_parser as add_export_parser
     from pyorch.movie import add_parser as add_movie_parser
@@ -131,10 +135,8 @@ def _main(args: argparse.Namespace) -> int:
             from pyorch.sweep import cmd_sweep
 
             return cmd_sweep(args)
-        if args.cmd == "dataset":
-            from pyorch.gns import cmd_dataset
-
-            return cmd_dataset(args)
+        if getattr(args, "func", None) is not None:   # a kind's command (Kind.commands)
+            return int(args.func(args))
         if args.cmd == "export":
             from pyorch.export import cmd_export
 

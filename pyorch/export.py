@@ -9,7 +9,7 @@
   Per-particle properties computed by pyorch's analysis (:func:`particle_properties`) go to
   ``log/particles/<name>`` arrays, which OVITO loads as particle properties (to colour by):
   ``psi6_abs`` |psi6_j| [1] and ``n_neighbours`` (Voronoi neighbours, int32) of
-  :func:`pyorch.bed.analysis.psi6_per_particle`, ``voronoi_interior`` (int32 1/0: the cell
+  :func:`pyorch.structure.psi6_per_particle`, ``voronoi_interior`` (int32 1/0: the cell
   is kept by the thesis' Algorithm 4.3), and where the frames hold forces ``force_magnitude``
   |F| [the kind's force unit] (from fx, fy) and the bed's ``fmag`` (|F_magnetic|).
 - extended XYZ with ASE's conventions: per frame ``N``, then
@@ -42,12 +42,12 @@ def particle_properties(f: Frame) -> dict[str, NDArray[Any]]:
     """Per-particle properties of one frame, in the frame's particle order (each (N,)):
     ``psi6_abs`` |psi6_j| [1], ``n_neighbours`` [1] and ``voronoi_interior`` (1 when the
     Voronoi cell is kept by Algorithm 4.3, else 0) from
-    :func:`pyorch.bed.analysis.psi6_per_particle` with its default box and tolerance (what
+    :func:`pyorch.structure.psi6_per_particle` with its default box and tolerance (what
     :func:`pyorch.bed.analysis.frame_metrics` averages; NaN / 0 with fewer than
     ``MIN_VORONOI_POINTS`` particles); ``force_magnitude`` = |(fx, fy)| when the frames
-    have fx and fy (:func:`pyorch.bed.analysis.force_magnitudes`), and ``fmag`` when they
+    have fx and fy (:func:`pyorch.structure.force_magnitudes`), and ``fmag`` when they
     have it (the bed's |F_magnetic|), in the kind's force unit."""
-    from pyorch.bed import analysis
+    from pyorch import structure as analysis
 
     out: dict[str, NDArray[Any]] = {}
     if f.n >= analysis.MIN_VORONOI_POINTS:

@@ -87,38 +87,6 @@ def read_run_json(run_dir: str | Path) -> dict[str, Any]:
     return meta
 
 
-def piston(run_dir: str | Path) -> pd.DataFrame:
-    """piston.dat: step, t [T], H [D1], F_piston [m1 g], phi [1], phase."""
-    return read_dat(Path(run_dir) / "piston.dat")
-
-
-def frames(run_dir: str | Path) -> pd.DataFrame:
-    """Particle frames (long format): step, t, id, species, x, y [D1], vx, vy [D1/T],
-    fx, fy (total force), fmag, fmx, fmy (magnetic force of pairs + walls) [m1 g], from
-    particles.bin (binary frames) if written, else particles.dat. Frame by frame and lazily:
-    :func:`pyorch.trajectory.open_run`."""
-    from pyorch.bed import frame_spec
-    from pyorch.trajectory import frames_dataframe
-
-    return frames_dataframe(run_dir, frame_spec(run_dir, geometry=False))
-
-
-def has_frames(run_dir: str | Path) -> bool:
-    """Whether a bed run directory holds particle frames (text or binary)."""
-    return (Path(run_dir) / "particles.dat").is_file() or \
-        (Path(run_dir) / "particles.bin").is_file()
-
-
-def mean_distance(run_dir: str | Path) -> pd.DataFrame:
-    """mean_distance.dat: step, t [T], D_hat [D1]."""
-    return read_dat(Path(run_dir) / "mean_distance.dat")
-
-
-def energy(run_dir: str | Path) -> pd.DataFrame:
-    """energy.dat: step, t, E_kin, E_pair, E_wall, E_grav, E_total [m1 g D1]."""
-    return read_dat(Path(run_dir) / "energy.dat")
-
-
 def frame_at(frames_df: pd.DataFrame, step: int | None = None) -> pd.DataFrame:
     """One frame (the last one when step is None), sorted by particle id."""
     steps = frames_df["step"].unique()
@@ -128,24 +96,3 @@ def frame_at(frames_df: pd.DataFrame, step: int | None = None) -> pd.DataFrame:
     if sel.empty:
         raise KeyError(f"no frame at step {step}; frames at {steps[:5]}...")
     return sel.sort_values("id").reset_index(drop=True)
-
-
-PHASES = {0: "steady", 1: "relax", 2: "compress", 3: "hold", 4: "expand", 5: "final"}
-
-
-def stroke(piston_df: pd.DataFrame) -> pd.DataFrame:
-    """Compression-expansion cycle in thesis variables (Fig. 3.3a).
-
-    Returns rows of phases compress/hold/expand with y_P = H0 - H (stroke
-    [D1]), y_P/y_F (y_F: maximum stroke), F/F_max and the phase name.
-    """
-    cyc = piston_df[piston_df["phase"].isin([2, 3, 4])].copy()
-    if cyc.empty:
-        raise ValueError("piston history has no compression phase")
-    h0 = float(cyc["H"].iloc[0])
-    cyc["y_P"] = h0 - cyc["H"]
-    y_f = float(cyc["y_P"].max())
-    cyc["y_P_over_y_F"] = cyc["y_P"] / y_f
-    cyc["F_over_F_max"] = cyc["F_piston"] / float(cyc["F_piston"].max())
-    cyc["phase_name"] = cyc["phase"].map(PHASES)
-    return cyc.reset_index(drop=True)

@@ -30,6 +30,9 @@ class Kind:
     package: str
     summary: str
     seed_key: str
+    #: modules of the kind's own ``pyorch`` subcommands (each has ``add_parser(subparsers)``
+    #: setting ``func``): the shared CLI asks the registry, it imports no kind
+    commands: tuple[str, ...] = ()
 
 
 KINDS: dict[str, Kind] = {
@@ -62,7 +65,7 @@ KINDS: dict[str, Kind] = {
         "length a (particle radius), time T = sqrt(a/g), mass m (all 1), force m g, "
         "energy m g a",
         "pyorch.lj", "Lennard-Jones particles in a 2D box, trajectories for GNS (seed 000)",
-        seed_key="particles.seed"),
+        seed_key="particles.seed", commands=("pyorch.lj.gns",)),
 }
 
 _KIND_RE = re.compile(r"""^\s*kind\s*=\s*['"]([^'"]*)['"]""", re.I | re.M)

@@ -2,6 +2,8 @@
 in-process f2py door. Both write the same run directory."""
 from __future__ import annotations
 
+import functools
+
 import os
 import shutil
 import signal
@@ -12,9 +14,8 @@ import tempfile
 import threading
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterable, Mapping
+from typing import Any, Callable, Iterable, Mapping
 
-import pandas as pd
 
 from pyorch import RunError, SceneError, io
 from pyorch.scene import Scene, name_scene
@@ -38,7 +39,9 @@ def engine_executable() -> Path:
 
 @dataclass(frozen=True)
 class Run:
-    """A run directory and its loaders."""
+    """A run directory and its loaders: ``meta`` (run.json) for every kind, and every loader
+    of the run's kind (its plugin's functions of the run directory, e.g. ``Run.piston()`` and
+    ``Run.frames()`` of a bed, ``Run.history()`` of rods); the shared layer knows no kind."""
 
     dir: Path
 
@@ -47,17 +50,17 @@ class Run:
         """run.json (RunError, code 4, if missing or broken)."""
         return io.read_run_json(self.dir)
 
-    def piston(self) -> pd.DataFrame:
-        return io.piston(self.dir)
+    def __getattr__(self, name: str) -> Callable[..., Any]:
+        from pyorch import kinds
 
-    def frames(self) -> pd.DataFrame:
-        return io.frames(self.dir)
-
-    def mean_distance(self) -> pd.DataFrame:
-        return io.mean_distance(self.dir)
-
-    def energy(self) -> pd.DataFrame:
-        return io.energy(self.dir)
+        if name.startswith("_"):
+            raise AttributeError(name)
+        kind = kinds.of_run(self.dir)
+        fn = getattr(kinds.plugin(kind.name), name, None)
+        if not callable(fn):
+            raise AttributeError(f"kind {kind.name!r} has no loader {name!r} "
+                                 f"({kind.package})")
+        return functools.partial(fn, self.dir)
 
 
 def _scene_of(scene: Scene | str | Path, overrides: Iterable[str] | Mapping[str, Any] | None) -> Scene:

@@ -17,6 +17,7 @@ from pyorch.export import export
 from pyorch.run import run
 from pyorch.scene import Scene
 from pyorch.trajectory import open_run
+from pyorch.bed import readers as bed_readers
 
 gsd_hoomd = pytest.importorskip("gsd.hoomd")
 ase_io = pytest.importorskip("ase.io")
@@ -64,7 +65,7 @@ def _pyorch(*args: str) -> subprocess.CompletedProcess[str]:
 
 def test_gsd_of_the_bed_reads_back_in_the_hoomd_schema(runs, tmp_path):
     out = export(runs["bed_bin"], "gsd", tmp_path / "bed.gsd")
-    fr = io.frames(runs["bed_bin"])
+    fr = bed_readers.frames(runs["bed_bin"])
     steps = np.unique(fr["step"])
     with gsd_hoomd.open(str(out), "r") as g, open_run(runs["bed_bin"]) as tr:
         assert len(g) == len(tr) == len(steps) > 2
@@ -100,7 +101,7 @@ def test_gsd_holds_per_particle_properties_equal_to_pyorch_analysis(runs, tmp_pa
     from pyorch.bed import analysis
 
     out = export(runs["bed_bin"], "gsd", tmp_path / "bed.gsd", double=True)
-    fr = io.frames(runs["bed_bin"])
+    fr = bed_readers.frames(runs["bed_bin"])
     names = {"psi6_abs", "n_neighbours", "voronoi_interior", "force_magnitude", "fmag"}
     with gsd_hoomd.open(str(out), "r") as g:
         assert len(g) > 2

@@ -19,6 +19,7 @@ from pyorch import RunError, SceneError, dla, io
 from pyorch.run import engine_executable, resume, run
 from pyorch.scene import Scene
 from pyorch.trajectory import Trajectory, open_run, read_binary_header
+from pyorch.bed import readers as bed_readers
 
 ROOT = Path(__file__).resolve().parents[1]
 BED = {"particles.n": 120, "cell.width": 24.0, "cell.height": 30.0, "protocol.h_start": 30.0,
@@ -96,8 +97,8 @@ def test_bed_binary_and_text_frames_of_one_run_agree_bit_for_bit(bed_runs):
 
 
 def test_loaders_read_either_form_transparently(bed_runs, dla_runs):
-    """io.frames / dla.frames of a binary-only run equal those of the text run."""
-    a, b = io.frames(bed_runs["binary"]), io.frames(bed_runs["text"])
+    """bed_readers.frames / dla.frames of a binary-only run equal those of the text run."""
+    a, b = bed_readers.frames(bed_runs["binary"]), bed_readers.frames(bed_runs["text"])
     pd.testing.assert_frame_equal(a, b)
     assert a.attrs["units"] == b.attrs["units"]
     assert not (bed_runs["binary"] / "particles.dat").exists()
@@ -129,7 +130,7 @@ def test_header_describes_the_file(bed_runs):
     assert names == ["id", "species", "x", "y", "vx", "vy", "fx", "fy", "fmag", "fmx", "fmy"]
     assert rec == 16 + n * (2 * 4 + 9 * 8)
     assert (len(raw) - hsize) % rec == 0
-    text = io.frames(bed_runs["text"])
+    text = bed_readers.frames(bed_runs["text"])
     k = (len(raw) - hsize) // rec - 1                      # the last frame, by hand
     off = hsize + k * rec
     step = int(np.frombuffer(raw, "<i8", 1, off)[0])
@@ -193,7 +194,7 @@ def test_truncated_binary_file_is_refused_never_padded(bed_runs, tmp_path):
     with open(f, "r+b") as fh:
         fh.truncate(size - 8)
     with pytest.raises(RunError, match=r"truncated: .* never padded"):
-        io.frames(d)
+        bed_readers.frames(d)
     with pytest.raises(RunError, match="not a pyorch binary frames file"):
         (d / "x.bin").write_bytes(b"hello world, not frames")
         Trajectory(d / "x.bin", io_spec(d))

@@ -1,4 +1,4 @@
-"""GNS datasets (pyorch.gns): format as geoelements/gns reads it, statistics as gns normalises
+"""GNS datasets (pyorch.lj.gns): format as geoelements/gns reads it, statistics as gns normalises
 with them (frame differences, not divided by dt), the validator, the split, the round trip
 from frames.dat, and (with the engine) generation through the sweep with resume."""
 from __future__ import annotations
@@ -16,7 +16,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pyorch import RunError, SceneError, gns
+from pyorch import RunError, SceneError
+from pyorch.lj import gns
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pyorch import gns
+from pyorch.lj import gns
 
 ROOT = Path(__file__).resolve().parent.parent
 RECIPE = ROOT / "examples" / "gns"

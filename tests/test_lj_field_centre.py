@@ -1,7 +1,7 @@
 """The centre of lj_box's point and vortex fields, as the README documents it (issue 30: it
 was undocumented): (dx, dy) = x - (x0, y0) with x0 = y0 = 0 by default, the box's lower-left
 corner, and x0 = y0 = L/2 centres the field. Read from the engine's own field.dat (F_ext on the
-cell centres), against the formulas of fortran/md/fields.f90. Scenes are written as text, so
+cell centres), against the formulas of fortran/lj_box/fields.f90. Scenes are written as text, so
 the test runs through the engine's reader whatever pyorch's override checks know."""
 from __future__ import annotations
 

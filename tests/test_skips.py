@@ -8,6 +8,7 @@ from pathlib import Path
 import pytest
 
 from pyorch.cli import main
+from pyorch.bed import readers as bed_readers
 
 ROOT = Path(__file__).resolve().parents[1]
 RUNS = ROOT / "runs"
@@ -100,7 +101,7 @@ def test_single_particle_plot_and_analyze(tmp_path: Path,
     summary = (out / "analysis" / "summary.csv").read_text().splitlines()
     assert summary[:2] == ["quantity,value,unit", "N,1.0,"]
     # the figure is y(t) of the frames: the fall from 10 D1 and the bounce back up
-    fr = io.frames(out)
+    fr = bed_readers.frames(out)
     fig = height_vs_time(fr)
     (line,) = fig.axes[0].get_lines()
     assert list(line.get_xdata()) == list(fr["t"]) and list(line.get_ydata()) == list(fr["y"])

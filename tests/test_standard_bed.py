@@ -11,6 +11,7 @@ import pytest
 
 from pyorch import io
 from pyorch.run import Run, run
+from pyorch.bed import readers as bed_readers
 
 RUNS = Path(__file__).resolve().parents[1] / "runs"
 
@@ -50,7 +51,7 @@ def test_relaxed_bed_is_at_rest(demo: Run) -> None:
 
 
 def test_piston_force_grows_during_compression(demo: Run) -> None:
-    cyc = io.stroke(demo.piston())
+    cyc = bed_readers.stroke(demo.piston())
     comp = cyc[cyc["phase"] == 2]
     bins = pd.cut(comp["y_P_over_y_F"], np.linspace(0, 1, 11), include_lowest=True)
     means = comp.groupby(bins, observed=True)["F_piston"].mean().to_numpy()
@@ -61,7 +62,7 @@ def test_piston_force_grows_during_compression(demo: Run) -> None:
 
 def test_expansion_shows_hysteresis(demo: Run) -> None:
     """Thesis Fig. 3.3a: at equal stroke the expansion force lies below the compression force."""
-    cyc = io.stroke(demo.piston())
+    cyc = bed_readers.stroke(demo.piston())
     comp, exp = cyc[cyc["phase"] == 2], cyc[cyc["phase"] == 4]
     grid = np.linspace(0.5, 0.95, 10)
     f_c = np.interp(grid, comp["y_P_over_y_F"], comp["F_over_F_max"])

@@ -24,6 +24,7 @@ from pyorch.bed import structure_plots as sp
 from pyorch.cli import main
 from pyorch.run import run
 from pyorch.scene import Scene
+from pyorch.bed import readers as bed_readers
 
 ROOT = Path(__file__).resolve().parents[1]
 OVERRIDES = {
@@ -68,7 +69,7 @@ def tables(run_dir: Path) -> dict:
 def fake_bidisperse(src: Path, dst: Path, d2: float = 0.6) -> Path:
     """Copy of run ``src`` where even ids are species 2 (diameter d2) in particles.dat and scene.nml."""
     shutil.copytree(src, dst)
-    fr = io.frames(src)
+    fr = bed_readers.frames(src)
     fr["species"] = 1 + (fr["id"] % 2 == 0).astype(np.int64)
     head = (src / "particles.dat").read_text().splitlines()[:2]
     (dst / "particles.dat").write_text("\n".join(head) + "\n" + fr.to_csv(sep=" ", header=False, index=False))
@@ -103,13 +104,13 @@ def test_analyze_run_returns_every_table(tables):
 
 def test_time_series_has_one_row_per_frame_indexed_by_t_with_piston_and_stroke(run_dir, tables):
     ts = tables["time_series"]
-    fr, pis = io.frames(run_dir), io.piston(run_dir)
+    fr, pis = bed_readers.frames(run_dir), bed_readers.piston(run_dir)
     assert ts.index.name == "t"
     assert list(ts["step"]) == sorted(fr["step"].unique())
     np.testing.assert_allclose(ts.index, fr.groupby("step")["t"].first().to_numpy())
     for step, h in zip(ts["step"], ts["H"]):  # nearest piston row (exact: frames are on piston steps)
         assert h == pis.loc[(pis["step"] - step).abs().idxmin(), "H"]
-    cyc = io.stroke(pis)
+    cyc = bed_readers.stroke(pis)
     comp = ts[ts["phase"] == 2]
     np.testing.assert_allclose(comp["y_P"], float(cyc["H"].iloc[0]) - comp["H"])
     np.testing.assert_allclose(ts["y_P_over_y_F"], ts["y_P"] / float(cyc["y_P"].max()))
@@ -138,7 +139,7 @@ def test_force_histogram_counts_sum_to_n_per_frame_and_species(tables):
 
 
 def test_summary_f_max_is_the_maximum_over_compression_and_turn_around(run_dir, tables):
-    s, pis = tables["summary"], io.piston(run_dir)
+    s, pis = tables["summary"], bed_readers.piston(run_dir)
     h_min = pis.loc[pis["phase"].isin([2, 3, 4]), "H"].min()
     comp = pis[(pis["phase"] == 2) | (pis["phase"].isin([3, 4]) & (pis["H"] <= h_min * (1 + 1e-9)))]
     assert (comp["phase"] != 2).any()  # the turn-around row (expand, at the lowest H) is looked at
@@ -146,9 +147,9 @@ def test_summary_f_max_is_the_maximum_over_compression_and_turn_around(run_dir, 
     peak = comp.loc[comp["F_piston"].idxmax()]
     assert s["step_F_max"] == peak["step"] and s["H_at_F_max"] == peak["H"]
     assert s["phi_at_F_max"] == peak["phi"]
-    md = io.mean_distance(run_dir)
+    md = bed_readers.mean_distance(run_dir)
     assert s["D_hat"] == md.loc[(md["step"] - peak["step"]).abs().idxmin(), "D_hat"]
-    steps = np.sort(io.frames(run_dir)["step"].unique())
+    steps = np.sort(bed_readers.frames(run_dir)["step"].unique())
     assert s["frame_step"] == steps[np.abs(steps - peak["step"]).argmin()]
     assert s["N"] == N and s["R"] == 0.0 and s["a"] == 1.0
     row = tables["time_series"].set_index("step").loc[int(s["frame_step"])]
@@ -159,7 +160,7 @@ def test_summary_f_max_is_the_maximum_over_compression_and_turn_around(run_dir, 
 
 def test_min_distance_is_piston_height_minus_highest_centre(run_dir, tables):
     md = tables["min_distance"]
-    fr = io.frames(run_dir)
+    fr = bed_readers.frames(run_dir)
     top = fr.groupby("step")["y"].max()
     np.testing.assert_allclose(md["delta"], md["H"] - top.loc[md["step"]].to_numpy())
     np.testing.assert_allclose(md["delta"], md["delta_1"])
@@ -207,7 +208,7 @@ def test_run_without_particles_gives_piston_summary_and_skips_plots(run_dir, tmp
     (d / "particles.dat").unlink()
     t = az.analyze_run(d)
     assert list(t) == ["summary"]
-    assert t["summary"]["F_max"] == io.piston(d).loc[lambda p: analysis.compression_rows(p), "F_piston"].max()
+    assert t["summary"]["F_max"] == bed_readers.piston(d).loc[lambda p: analysis.compression_rows(p), "F_piston"].max()
     assert np.isnan(t["summary"]["N"])
     assert "no particle frames" in capsys.readouterr().err
     assert az.plot_run(d) == []
@@ -342,7 +343,7 @@ def test_force_pdf_from_values_and_from_histogram(tmp_path):
 
 def test_time_series_figures(tables, run_dir, tmp_path):
     ts = tables["time_series"]
-    _png_ok(sp.order_vs_time(ts, piston_df=io.piston(run_dir)), tmp_path / "o.png")
+    _png_ok(sp.order_vs_time(ts, piston_df=bed_readers.piston(run_dir)), tmp_path / "o.png")
     _png_ok(sp.order_vs_time(ts, x="y_P_over_y_F"), tmp_path / "o2.png")
     _png_ok(sp.r6_vs_time(ts), tmp_path / "r6.png")
 
@@ -391,7 +392,7 @@ def test_n6_vs_psi6_reports_pearson_r(across_runs, tmp_path):
 
 
 def test_f_over_fmax_vs_phi(run_dir, bi_dir, tmp_path):
-    pistons = [io.piston(run_dir), io.piston(bi_dir)]
+    pistons = [bed_readers.piston(run_dir), bed_readers.piston(bi_dir)]
     fig = sp.f_over_fmax_vs_phi(pistons, ["mono", "bi"])
     for line in fig.axes[0].get_lines():
         assert np.max(line.get_ydata()) == pytest.approx(1.0)

@@ -16,11 +16,15 @@ module integrators
   use kinds, only: dp
   use parallel, only: par_min_loop, my_share
   use state, only: state_t
-  use model, only: int_stormer_verlet, int_velocity_verlet, int_euler, int_semi_euler
   implicit none
   private
 
   public :: estimate_velocity, finish_velocity, advance
+  public :: int_stormer_verlet, int_velocity_verlet, int_euler, int_semi_euler
+
+  !> integrator codes (the systems map their scene's choice onto them)
+  integer, parameter :: int_stormer_verlet = 1, int_velocity_verlet = 2, int_euler = 3
+  integer, parameter :: int_semi_euler = 4
 
 contains
 

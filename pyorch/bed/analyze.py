@@ -59,6 +59,8 @@ from pyorch import RunError, io
 from pyorch.bed import analysis
 from pyorch.csvunits import read_csv, write_csv
 from pyorch.bed import structure_plots as sp
+from pyorch.bed import readers as bed_readers
+from pyorch.bed.readers import run_geometry
 
 __all__ = ["analyze_run", "write_tables", "read_table", "plot_run", "run_geometry", "max_compression_step",
            "compression_rows", "magnetic_force_vectors"]
@@ -81,28 +83,6 @@ def n_particles(frames: pd.DataFrame) -> int:
 
 def _few(n: int) -> str:
     return f"{n} particle" + ("" if n == 1 else "s")
-
-
-def run_geometry(run_dir: str | Path) -> dict[str, Any]:
-    """Cell and species of a run from its scene.nml.
-
-    Returns
-    -------
-    dict
-        ``width``, ``height`` [D1], ``diameters`` ({species: diameter [D1]}), ``n_species``,
-        ``mix_ratio`` (nominal fraction of species 2).
-    """
-    import f90nml
-
-    nml = f90nml.read(str(Path(run_dir) / "scene.nml"))
-    part = nml.get("particles", {})
-    diam = part.get("species_diameter", 1.0)
-    diam = list(diam) if isinstance(diam, (list, tuple)) else [diam]
-    diam = [1.0 if d is None else float(d) for d in diam]
-    n_species = int(part.get("n_species", len(diam)) or 1)
-    return {"width": float(nml["cell"]["width"]), "height": float(nml["cell"]["height"]),
-            "diameters": {k + 1: diam[k] if k < len(diam) else 1.0 for k in range(max(n_species, 1))},
-            "n_species": n_species, "mix_ratio": float(part.get("mix_ratio", 0.0) or 0.0)}
 
 
 compression_rows = analysis.compression_rows
@@ -237,16 +217,16 @@ def analyze_run(run_dir: str | Path, *, vectors: bool = True) -> Tables:
     if not (run_dir / "scene.nml").is_file():
         raise RunError(f"{run_dir}: not a run directory (no scene.nml)")
     geo = run_geometry(run_dir)
-    pis = io.piston(run_dir) if (run_dir / "piston.dat").is_file() else None
-    md = io.mean_distance(run_dir) if (run_dir / "mean_distance.dat").is_file() else None
+    pis = bed_readers.piston(run_dir) if (run_dir / "piston.dat").is_file() else None
+    md = bed_readers.mean_distance(run_dir) if (run_dir / "mean_distance.dat").is_file() else None
     summary: dict[str, float] = {"N": np.nan, "n_species": float(geo["n_species"]),
                                  "R": geo["mix_ratio"] if geo["n_species"] > 1 else 0.0,
                                  "a": geo["diameters"].get(2, 1.0) / geo["diameters"].get(1, 1.0)
                                  if geo["n_species"] > 1 else 1.0}
     summary.update(_summary_piston(pis, md))
     tables: Tables = {}
-    has_frames = io.has_frames(run_dir)
-    fr = io.frames(run_dir) if has_frames else None
+    has_frames = bed_readers.has_frames(run_dir)
+    fr = bed_readers.frames(run_dir) if has_frames else None
     if fr is None or fr.empty:
         _say(f"{run_dir}: no particle frames (particles.dat): structure analysis skipped")
         tables["summary"] = pd.Series(summary, dtype=float, name=run_dir.name)
@@ -364,11 +344,11 @@ def plot_run(run_dir: str | Path, out: str | Path | None = None,
     """
     run_dir = Path(run_dir)
     out = Path(out) if out is not None else run_dir / "plots"
-    if not io.has_frames(run_dir):
+    if not bed_readers.has_frames(run_dir):
         _say(f"{run_dir}: no particles.dat: structure figures skipped")
         return []
     if tables is None:
-        n_max = n_particles(io.frames(run_dir))
+        n_max = n_particles(bed_readers.frames(run_dir))
         if n_max < analysis.MIN_VORONOI_POINTS:
             _say(f"{run_dir}: {_few(n_max)}: {STRUCTURE_SKIPPED.replace('structure', 'structure figures')}")
             return []
@@ -387,7 +367,7 @@ def plot_run(run_dir: str | Path, out: str | Path | None = None,
         written.append(path)
 
     ts = tables["time_series"]
-    fr = io.frames(run_dir)
+    fr = bed_readers.frames(run_dir)
     steps = ts["step"].to_numpy()
     picks = {int(steps[-1]), int(tables["forces"]["step"].iloc[0])}
     comp = ts[ts["phase"] == 2] if "phase" in ts.columns else ts.iloc[:0]
@@ -409,7 +389,7 @@ def plot_run(run_dir: str | Path, out: str | Path | None = None,
     save(sp.force_vectors(forces, w, hgt, h_max, diam, scale=scale), "force_vectors.png")
     save(sp.fluctuation_map(forces, w, hgt, h_max, diam), "force_fluctuations.png")
     save(sp.force_pdf(tables["force_histogram"]), "force_pdf.png")
-    pis = io.piston(run_dir) if (run_dir / "piston.dat").is_file() else None
+    pis = bed_readers.piston(run_dir) if (run_dir / "piston.dat").is_file() else None
     save(sp.order_vs_time(ts, piston_df=pis), "order_vs_time.png")
     if ts["R6_mean"].notna().any():
         save(sp.r6_vs_time(ts, piston_df=pis), "r6_vs_time.png")

@@ -69,6 +69,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.integrate import solve_ivp
 from scipy.optimize import least_squares
 from scipy.signal import find_peaks
+from pyorch.bed import readers as bed_readers
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
@@ -1382,7 +1383,7 @@ def sweep_metrics(run: Any) -> dict[str, Any]:
     from pyorch import io as _io
     from pyorch.scene import Scene
 
-    pis = _io.piston(run.dir)
+    pis = bed_readers.piston(run.dir)
     experiment, rec, settle = recorded_motion(pis)
     kw: dict[str, Any] = {k: (int(v) if k == "min_peaks" else v) for k, v in IDENTIFY_DEFAULTS.items()}
     if experiment == "nudge" and not settle.empty:
@@ -1410,7 +1411,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = ap.parse_args(argv)
     from pyorch import io as _io
 
-    pis = _io.piston(args.run_dir)
+    pis = bed_readers.piston(args.run_dir)
     experiment, rec, _ = recorded_motion(pis)
     rec = rec.iloc[:: max(1, args.every)]
     ts: Any = args.t_scale if args.t_scale in ("auto", "gravity") else float(args.t_scale)

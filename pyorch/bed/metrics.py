@@ -7,7 +7,9 @@ from typing import Any
 
 import pandas as pd
 
-from pyorch.bed import METRIC_KEYS
+#: the bed's per-run sweep results (see summary_metrics)
+METRIC_KEYS = ("F_max", "H_at_F_max", "D_hat", "n5", "n6", "n7", "Psi6")
+
 
 
 def _nan_metrics() -> dict[str, float]:
@@ -22,7 +24,8 @@ def _nearest_row(df: pd.DataFrame, step: int) -> pd.Series:
 def _frame_metrics_near(run: Any, step: int) -> dict[str, float]:
     """n5, n6, n7, Psi6 of the particle frame nearest to ``step`` (NaN without frames)."""
     from pyorch.bed.analysis import MIN_VORONOI_POINTS, frame_metrics
-    from pyorch.io import frame_at, has_frames
+    from pyorch.io import frame_at
+    from pyorch.bed.readers import has_frames
 
     if not has_frames(run.dir):
         return {}

@@ -15,13 +15,14 @@ from matplotlib.figure import Figure  # noqa: E402
 from matplotlib.patches import Circle  # noqa: E402
 
 from pyorch import io  # noqa: E402
+from pyorch.bed import readers as bed_readers
 
 _PHASE_COLOURS = {"compress": "tab:red", "hold": "tab:purple", "expand": "tab:blue"}
 
 
 def force_vs_stroke(piston_df: pd.DataFrame, label: str | None = None) -> Figure:
     """F/F_max versus y_P/y_F over the compression-expansion cycle (thesis Fig. 3.3a)."""
-    cyc = io.stroke(piston_df)
+    cyc = bed_readers.stroke(piston_df)
     fig, ax = plt.subplots(figsize=(5.5, 4))
     for name, part in cyc.groupby("phase_name", sort=False):
         ax.plot(part["y_P_over_y_F"], part["F_over_F_max"], lw=1,
@@ -37,7 +38,7 @@ def force_vs_stroke(piston_df: pd.DataFrame, label: str | None = None) -> Figure
 
 def force_vs_phi(piston_df: pd.DataFrame) -> Figure:
     """F/F_max versus packing fraction phi (thesis Fig. 3.7 / 3.10)."""
-    cyc = io.stroke(piston_df)
+    cyc = bed_readers.stroke(piston_df)
     fig, ax = plt.subplots(figsize=(5.5, 4))
     for name, part in cyc.groupby("phase_name", sort=False):
         ax.plot(part["phi"], part["F_over_F_max"], lw=1, color=_PHASE_COLOURS.get(str(name), "k"),
@@ -59,7 +60,7 @@ def time_series(df: pd.DataFrame, column: str, ylabel: str, piston_df: pd.DataFr
             part = piston_df[piston_df["phase"] == code]
             if not part.empty:
                 ax.axvspan(part["t"].min(), part["t"].max(), color=colour, alpha=0.08, lw=0,
-                           label=f"{io.PHASES[code]} (shaded)")
+                           label=f"{bed_readers.PHASES[code]} (shaded)")
         if ax.get_legend_handles_labels()[0]:
             ax.legend(frameon=False, fontsize="small")
     ax.set_xlabel(r"$t$ [$T=\sqrt{D_1/g}$]")
@@ -129,7 +130,7 @@ def save_run_plots(run_dir: str | Path, out: str | Path | None = None) -> list[P
         plt.close(fig)
         written.append(path)
 
-    pis = io.piston(run_dir) if (run_dir / "piston.dat").is_file() else None
+    pis = bed_readers.piston(run_dir) if (run_dir / "piston.dat").is_file() else None
     if pis is not None:
         if pis["phase"].isin([2]).any():
             save(force_vs_stroke(pis), "force_vs_stroke.png")
@@ -137,9 +138,9 @@ def save_run_plots(run_dir: str | Path, out: str | Path | None = None) -> list[P
         save(time_series(pis, "phi", r"packing fraction $\phi$", pis), "phi_vs_t.png")
         save(time_series(pis, "F_piston", r"piston force [$m_1 g$]", pis), "piston_force_vs_t.png")
     if (run_dir / "mean_distance.dat").is_file():
-        md = io.mean_distance(run_dir)
+        md = bed_readers.mean_distance(run_dir)
         save(time_series(md, "D_hat", r"$\hat D$ [$D_1$]", pis), "mean_distance_vs_t.png")
-    if io.has_frames(run_dir):
+    if bed_readers.has_frames(run_dir):
         import f90nml
 
         nml = f90nml.read(str(run_dir / "scene.nml"))
@@ -147,7 +148,7 @@ def save_run_plots(run_dir: str | Path, out: str | Path | None = None) -> list[P
         diam = nml["particles"].get("species_diameter", 1.0)
         diam = diam if isinstance(diam, list) else [diam]
         diameters = {k + 1: float(d) for k, d in enumerate(diam)}
-        fr = io.frames(run_dir)
+        fr = bed_readers.frames(run_dir)
         if not fr.empty and int(fr.groupby("step").size().max()) < FEW_PARTICLES:
             save(height_vs_time(fr), "height_vs_t.png")
         steps = np.sort(fr["step"].unique())

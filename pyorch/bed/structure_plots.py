@@ -43,6 +43,7 @@ from scipy.optimize import OptimizeWarning
 from scipy.spatial import Voronoi
 
 from pyorch.bed import analysis
+from pyorch.bed import readers as bed_readers
 
 __all__ = [
     "voronoi_snapshot",
@@ -443,12 +444,12 @@ def _abscissa(ts: pd.DataFrame, x: str | None) -> tuple[np.ndarray, str]:
 def _shade_phases(ax: Axes, ts: pd.DataFrame, xs: np.ndarray, piston_df: pd.DataFrame | None,
                   label: bool = True) -> None:
     """Shade compression (red) and expansion (blue) over time, labelled with the phase names of
-    :data:`pyorch.io.PHASES` for the legend (``label=False``: unlabelled, e.g. on a second panel).
+    :data:`pyorch.bed_readers.PHASES` for the legend (``label=False``: unlabelled, e.g. on a second panel).
 
     The phase spans come from ``piston_df`` (columns ``t``, ``phase``) when given, else from a ``phase``
     column of ``ts`` (then they are only as fine as the frames). Call before ``ax.legend``.
     """
-    from pyorch.io import PHASES
+    from pyorch.bed.readers import PHASES
 
     src_t, src_ph = (piston_df["t"].to_numpy(float), piston_df["phase"].to_numpy()) \
         if piston_df is not None else (xs, ts["phase"].to_numpy() if "phase" in ts.columns else None)
@@ -664,7 +665,7 @@ def f_over_fmax_vs_phi(pistons: Sequence[pd.DataFrame], labels: Sequence[str] | 
     Parameters
     ----------
     pistons : sequence of pandas.DataFrame
-        piston.dat tables (:func:`pyorch.io.piston`), one per run; only the compression phase is drawn.
+        piston.dat tables (:func:`pyorch.bed_readers.piston`), one per run; only the compression phase is drawn.
     labels : sequence of str, optional
         Legend entry per run (e.g. ``"a = 0.6, R = 0.5"``).
     """

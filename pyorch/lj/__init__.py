@@ -17,7 +17,7 @@ Files of a run directory (two header lines, as every .dat):
 
 This module: loaders (:func:`frames`, :func:`energy`, :func:`positions` as a
 ``(frames, N, 2)`` array), the speed distribution against the 2D Maxwell distribution
-(:func:`speed_table`), the figures and the sweep metrics. :mod:`pyorch.gns` builds GNS
+(:func:`speed_table`), the figures and the sweep metrics. :mod:`pyorch.lj.gns` builds GNS
 training sets from many runs of this kind.
 """
 from __future__ import annotations

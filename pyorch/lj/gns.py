@@ -654,7 +654,7 @@ def assemble(spec: DatasetSpec, results: pd.DataFrame | None = None) -> dict[str
                          "mean_neighbours_at_radius": measured,
                          "sampled_frames": len(sample),
                          "sample": "every training trajectory, frames spread over its whole "
-                                   "length (pyorch.gns.sample_indices)",
+                                   "length (pyorch.lj.gns.sample_indices)",
                          "by_frame_range": neighbours_by_frame_range(sample, sample_idx, frames,
                                                                      radius)},
         "noise": {"suggested_noise_std": suggested_noise_std(stats["vel_std"]),

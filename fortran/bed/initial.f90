@@ -8,10 +8,11 @@ module initial
   use scene, only: scene_t
   use model, only: model_t
   use state, only: state_t, state_allocate
+  use rng, only: seed_rng
   implicit none
   private
 
-  public :: place_particles, species_of, seed_rng
+  public :: place_particles, species_of
 
   real(dp), parameter :: margin = 1.0_dp   !< clearance from walls and piston [D1]
 
@@ -68,18 +69,6 @@ contains
       got(s) = got(s) + 1
     end do
   end subroutine interleave
-
-  subroutine seed_rng(seed)
-    integer, intent(in) :: seed
-    integer :: k, i
-    integer, allocatable :: put(:)
-    call random_seed(size=k)
-    allocate(put(k))
-    do i = 1, k
-      put(i) = seed + 104729*i + 7919*i*i
-    end do
-    call random_seed(put=put)
-  end subroutine seed_rng
 
   subroutine place_particles(sc, m, top, path, s, st)
     type(scene_t), intent(in) :: sc

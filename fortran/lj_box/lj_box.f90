@@ -26,9 +26,9 @@ module lj_box
        field_read_table, field_shapes, field_modulations, field_static
   use mirror_walls, only: mirror_reflect
   use friction, only: viscous_friction
-  use integrators, only: estimate_velocity, finish_velocity, advance_step => advance
-  use model, only: int_velocity_verlet, int_euler, int_semi_euler
-  use initial, only: seed_rng
+  use integrators, only: int_velocity_verlet, int_euler, int_semi_euler, estimate_velocity, &
+       finish_velocity, advance_step => advance
+  use rng, only: seed_rng
   use checkpoint, only: checkpoint_save, checkpoint_restore
   use parallel, only: init_threads
   use, intrinsic :: iso_fortran_env, only: int8

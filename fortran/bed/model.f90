@@ -12,6 +12,7 @@
 !> with mu_k = (D_k/D1)^2 and m_k = (D_k/D1)^2 (same material and thickness).
 module model
   use kinds, only: dp, pi, mu0
+  use integrators, only: int_stormer_verlet, int_velocity_verlet, int_euler, int_semi_euler
   use scene, only: scene_t
   use pair_forces, only: split_t, split_of
   implicit none
@@ -24,8 +25,6 @@ module model
 
   integer, parameter :: law_none = 0, law_dipole = 1
   integer, parameter :: wall_experimental = 1, wall_infinite = 2, wall_slab = 3
-  integer, parameter :: int_stormer_verlet = 1, int_velocity_verlet = 2, int_euler = 3
-  integer, parameter :: int_semi_euler = 4   !< kind 'lj_box' only
   integer, parameter :: piston_prescribed = 1, piston_fixed = 2, piston_none = 0, piston_free = 3
 
   type :: model_t
