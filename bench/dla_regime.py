@@ -1,6 +1,6 @@
 """DLA in the DLA regime and its ballistic end (issue 26 item 3, kind 'dla'): clusters of the
 scenes runs/dla_diffusion_limited.nml (2000 sticky disks in a carrier gas, mean free path
-2.0 L) and runs/dla_ballistic.nml (the same sticky disks alone in a 720 L box, mean free path
+1.9 L) and runs/dla_ballistic.nml (the same sticky disks alone in a 720 L box, mean free path
 91 L), one per seed, and their fractal dimension by mass-radius from the seed and by R_g
 against the mass over the growth history.
 
