@@ -11,6 +11,7 @@ module bed_method
   use engine, only: sim_t, sim_load, sim_step, pairs_per_step
   use protocol, only: phase_names
   use scene, only: scene_keys
+  use pair_table, only: table_json
   use schema, only: schema_t
   use output, only: output_open, output_close, output_flush, output_names, frames_name
   use checkpoint, only: checkpoint_save, checkpoint_restore
@@ -163,6 +164,7 @@ contains
            '  "list_builds": '//int_str(sim%nl%builds)//','//nl// &
            '  "pairs_per_step": '//int_str(pairs_per_step(sim))//','//nl// &
            '  "pair_evaluations": '//int_str(sim%nl%evaluated)//','//nl// &
+           table_json(m%tab)// &
            '  "units": {'//nl// &
            '    "length_m": '//r(m%length_unit)//','//nl// &
            '    "time_s": '//r(m%time_unit)//','//nl// &

@@ -9,7 +9,9 @@ module engine
   use state, only: state_t, state_allocate
   use protocol, only: protocol_t, protocol_build, piston_at, phase_names
   use initial, only: place_particles
-  use pair_forces, only: pair_forces_all, pair_forces_list, pair_forces_far, pair_energy_all
+  use pair_forces, only: pair_forces_all, pair_forces_list, pair_forces_far, pair_energy_all, &
+       dipole_table, max_bits
+  use scene_input, only: real_str, int_str
   use parallel, only: init_threads, par_min_loop, my_share
   use neighbours, only: nlist_t, nlist_setup, nlist_refresh, nb_all_pairs, nb_verlet
   use walls, only: wall_block, wall_energy, wall_chunk
@@ -52,8 +54,41 @@ contains
     call scene_validate(sim%sc, path, st)
     if (st%code /= 0) return
     call model_build(sim%sc, sim%m)
+    call build_pair_table(sim, path, st)
+    if (st%code /= 0) return
     call build_rest(sim, st)
   end subroutine sim_load
+
+  !> &integration pair_eval = 'table': the dipole table over r in [min_distance, r_hi] (r_hi:
+  !> the cell's diagonal with all pairs or a far field, else r_c + skin, the farthest listed
+  !> pair), to the requested pair_table_error; refused when the finest table misses it.
+  subroutine build_pair_table(sim, path, st)
+    type(sim_t), intent(inout) :: sim
+    character(len=*), intent(in) :: path
+    type(status_t), intent(inout) :: st
+    real(dp) :: r_lo, r_hi
+    logical :: ok
+    associate (sc => sim%sc, m => sim%m)
+      if (trim(sc%pair_eval) /= 'table' .or. m%pair_law /= law_dipole) return
+      r_lo = sc%min_distance
+      if (r_lo <= 0) then
+        call set_error(st, exit_bad_input, trim(path)//': &integration pair_eval = ''table'': '// &
+             'needs &physics min_distance in (0, 1] D1 (the table''s lower end; it is 0)')
+        return
+      end if
+      if (m%neighbour == nb_all_pairs .or. m%tail_frozen) then
+        r_hi = 1.01_dp*sqrt(m%width**2 + m%height**2)
+      else
+        r_hi = m%r_cut + m%skin
+      end if
+      call dipole_table(m%shift4, r_lo**2, r_hi**2, sc%pair_table_error, m%tab, ok)
+      if (.not. ok) call set_error(st, exit_bad_input, trim(path)//': &integration '// &
+           'pair_table_error = '//real_str(sc%pair_table_error)//': not reached over r in ['// &
+           real_str(r_lo)//', '//real_str(r_hi)//'] D1 (the finest table, '// &
+           int_str(2_i8**max_bits)//' segments per octave of r^2, reaches '// &
+           real_str(m%tab%max_err)//'); allowed ['//real_str(m%tab%max_err)//', 1e-2]')
+    end associate
+  end subroutine build_pair_table
 
   subroutine build_rest(sim, st)
     type(sim_t), intent(inout) :: sim
@@ -173,7 +208,8 @@ contains
       r3 = m%dry_order > 0
       if (m%neighbour == nb_all_pairs) then
         call init_forces(sim, .false.)
-        call pair_forces_all(s%n, s%x, s%y, s%mu, s%wsin, m%k_pair, r3, s%fx, s%fy, s%s3, r2min)
+        call pair_forces_all(s%n, s%x, s%y, s%mu, s%wsin, m%k_pair, r3, s%fx, s%fy, s%s3, r2min, &
+             tab=m%tab)
         nl%evaluated = nl%evaluated + int(s%n, i8)*int(s%n - 1, i8)/2
         return
       end if
@@ -185,10 +221,11 @@ contains
       if (allocated(nl%rstart) .and. nl%strategy == nb_verlet) then
         call pair_forces_list(s%n, s%x, s%y, s%mu, s%wsin, m%k_pair, m%r_cut**2, m%shift4, &
              nl%check, r3, nl%start, nl%nbr, s%fx, s%fy, s%s3, r2min, own=nl%own, &
-             split=m%split, rstart=nl%rstart, rlo=nl%rlo, rhi=nl%rhi)
+             split=m%split, rstart=nl%rstart, rlo=nl%rlo, rhi=nl%rhi, tab=m%tab)
       else
         call pair_forces_list(s%n, s%x, s%y, s%mu, s%wsin, m%k_pair, m%r_cut**2, m%shift4, &
-             nl%check, r3, nl%start, nl%nbr, s%fx, s%fy, s%s3, r2min, own=nl%own, split=m%split)
+             nl%check, r3, nl%start, nl%nbr, s%fx, s%fy, s%s3, r2min, own=nl%own, split=m%split, &
+             tab=m%tab)
       end if
       nl%evaluated = nl%evaluated + nl%pairs
     end associate
@@ -204,7 +241,7 @@ contains
         s%dfx_far = s%fx_far; s%dfy_far = s%fy_far; s%ds3_far = s%s3_far
       end if
       call pair_forces_far(s%n, s%x, s%y, s%mu, s%wsin, m%k_pair, m%r_cut**2, m%dry_order > 0, &
-           s%fx_far, s%fy_far, s%s3_far, m%split)
+           s%fx_far, s%fy_far, s%s3_far, m%split, tab=m%tab)
       if (m%tail_linear .and. s%tail_ready .and. s%step > s%tail_step) then
         per_step = 1.0_dp/real(s%step - s%tail_step, dp)
         s%dfx_far = (s%fx_far - s%dfx_far)*per_step

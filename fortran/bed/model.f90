@@ -14,7 +14,7 @@ module model
   use kinds, only: dp, pi, mu0
   use integrators, only: int_stormer_verlet, int_velocity_verlet, int_euler, int_semi_euler
   use scene, only: scene_t
-  use pair_forces, only: split_t, split_of
+  use pair_forces, only: split_t, split_of, pair_table_t
   implicit none
   private
 
@@ -57,6 +57,7 @@ module model
     logical :: tail_frozen = .false.     !< a far field beyond r_c evaluated every tail_every steps
     logical :: tail_linear = .false.     !< ... and extrapolated linearly in between
     type(split_t) :: split               !< near/far hand-over (off: sharp at r_c, or no tail)
+    type(pair_table_t) :: tab            !< the dipole law's table (&integration pair_eval; off: exact)
     integer :: tail_every = 100
     ! geometry and step
     real(dp) :: width = 0, height = 0, dt = 0

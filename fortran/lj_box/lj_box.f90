@@ -21,7 +21,9 @@ module lj_box
   use state, only: state_t, state_allocate
   use neighbours, only: nlist_t, nlist_setup, nlist_refresh, nlist_owners, nb_all_pairs, &
        nb_cells, nb_verlet
-  use pair_forces, only: lj_law_t, lj_law, pair_forces_all, pair_forces_list, lj_energy
+  use pair_forces, only: lj_law_t, lj_law, pair_forces_all, pair_forces_list, lj_energy, &
+       lj_table, pair_table_t, max_bits
+  use pair_table, only: table_json
   use fields, only: field_t, field_add, field_potential, field_has_potential, &
        field_read_table, field_shapes, field_modulations, field_static
   use mirror_walls, only: mirror_reflect
@@ -77,6 +79,8 @@ module lj_box
     real(dp) :: r_cut = 5                   !< R [a]
     character(len=nm) :: neighbour = 'verlet'
     real(dp) :: skin = 0.6_dp               !< [a]
+    character(len=nm) :: pair_eval = 'exact'   !< | 'table' (in r^2, to pair_table_error)
+    real(dp) :: pair_table_error = 1.0e-6_dp  !< pair_eval = 'table': largest relative force error
     ! &physics
     real(dp) :: alpha = 0                   !< eq. (7)
     ! &field (parameters in self%fl)
@@ -96,6 +100,7 @@ module lj_box
     ! built
     type(field_t) :: fl
     type(lj_law_t) :: lj
+    type(pair_table_t) :: ljtab             !< the law's table (pair_eval = 'table'; off: exact)
     type(state_t) :: s, none
     type(nlist_t) :: nl
     integer :: method = int_semi_euler, strategy = nb_verlet
@@ -158,6 +163,12 @@ contains
          'all pairs', choices=join(neighbour_names))
     call s%key('skin', self%skin, 'a', 'Verlet list skin (> 0 with neighbour = ''verlet'')', &
          lo=0.0_dp, hi=1.0e3_dp)
+    call s%key('pair_eval', self%pair_eval, '', 'force evaluation: exact (the reference) or a '// &
+         'table in r^2 between r_m and r_cut (no division) built at load to pair_table_error', &
+         choices='exact|table')
+    call s%key('pair_table_error', self%pair_table_error, '1', 'pair_eval = table: largest '// &
+         'error of the force over [r_m, r_cut], relative to the sum of its two terms'' '// &
+         'magnitudes (measured at load)', lo=1.0e-15_dp, hi=1.0e-2_dp)
     call s%group('physics', 'the drag')
     call s%key('alpha', self%alpha, '1', 'Stokes drag -(9/2) alpha v (eq. 7)', lo=0.0_dp, &
          hi=1.0e6_dp)
@@ -304,6 +315,7 @@ contains
     class(lj_box_t), intent(inout) :: self
     type(status_t), intent(inout) :: st
     real(dp) :: norm, need_lo, need_hi
+    logical :: ok
     associate (f => self%fl)
       if (f%shape == 3 .or. f%shape == 4) then   ! the direction in use; ex, ey stay as given
         norm = sqrt(f%ex**2 + f%ey**2)
@@ -335,6 +347,17 @@ contains
     self%method = method_codes(choice_index(self%integrator, method_names))
     self%steric_on = trim(self%law) == 'lj'
     self%lj = lj_law(int(self%p), self%u0, self%r_m, self%r_cut)
+    if (self%steric_on .and. trim(self%pair_eval) == 'table') then
+      call lj_table(self%lj, self%pair_table_error, self%ljtab, ok)
+      if (.not. ok) then
+        call set_error(st, exit_bad_input, '&steric pair_table_error = '// &
+             real_str(self%pair_table_error)//': not reached over r in ['//real_str(self%r_m)// &
+             ', '//real_str(self%r_cut)//'] a (the finest table, '//int_str(2_i8**max_bits)// &
+             ' segments per octave of r^2, reaches '//real_str(self%ljtab%max_err)// &
+             '); allowed ['//real_str(self%ljtab%max_err)//', 1e-2]')
+        return
+      end if
+    end if
     self%strategy = neighbour_codes(choice_index(self%neighbour, neighbour_names))
     call init_threads()
     call state_allocate(self%s, int(self%n))
@@ -469,12 +492,12 @@ contains
       if (self%steric_on) then
         if (self%strategy == nb_all_pairs) then
           call pair_forces_all(s%n, s%x, s%y, s%mu, s%wsin, 1.0_dp, no_r3, s%fx, s%fy, &
-               s%s3, self%r2min, law=self%lj)
+               s%s3, self%r2min, law=self%lj, tab=self%ljtab)
         else
           call nlist_refresh(nl, s)
           call pair_forces_list(s%n, s%x, s%y, s%mu, s%wsin, 1.0_dp, self%r_cut**2, &
                0.0_dp, .true., no_r3, nl%start, nl%nbr, s%fx, s%fy, s%s3, self%r2min, &
-               law=self%lj, own=nl%own)
+               law=self%lj, own=nl%own, tab=self%ljtab)
           nl%evaluated = nl%evaluated + nl%pairs
         end if
       end if
@@ -740,7 +763,7 @@ contains
          '  "field_conservative": '//trim(merge('true ', 'false', &
          field_has_potential(self%fl)))//','//nl// &
          '  "units": {"length": "a", "time": "T = sqrt(a/g)", "mass": "m", '// &
-         '"force": "m g", "energy": "m g a"},'//nl
+         '"force": "m g", "energy": "m g a"},'//nl//table_json(self%ljtab)
   end function json_fields
 
 end module lj_box

@@ -9,14 +9,26 @@
 !> The same passes (all pairs, half lists, threads) carry a second law, the
 !> truncated Lennard-Jones of seed 000 (eqs. 3-5, kind 'lj_box'): selected by
 !> the optional `law` argument (type lj_law_t); mu = 1, k_pair = 1, no r^-3 sums.
+!>
+!> Either law may be evaluated from a table in r^2 (module pair_table; the optional `tab`
+!> argument, on when tab%on): no square root, no division; built once at load by
+!> dipole_table / lj_table to a requested relative error, measured here against the exact
+!> kernels. Each pass selects exact or table outside its loops, as it selects the law.
 module pair_forces
-  use kinds, only: dp
+  use kinds, only: dp, i8
+  use pair_table, only: pair_table_t, law_i, table_pieces, segment_bounds, max_bits
   implicit none
   private
 
   public :: dipole_kernel, pair_forces_all, pair_forces_list, pair_forces_far, pair_energy_all
   public :: lj_law_t, lj_law, lj_kernel, lj_energy
   public :: split_t, split_of
+  public :: pair_table_t, dipole_table, lj_table, table_values, max_bits
+
+  integer, parameter :: samples = 16   !< error samples inside each table segment (and its ends)
+  !> a table is accepted when its measured error times this is within the request (the samples
+  !> may miss a segment's largest error by a little; tests check a dense grid of r)
+  real(dp), parameter :: margin = 1.05_dp
 
   integer, parameter :: mode_all = 1, mode_list = 2
   !> Mean listed pairs per row from which dipole lists go row by row (rows_list) instead of as
@@ -156,13 +168,32 @@ contains
   !> The Lennard-Jones kernel of the law over a chunk of nk squared distances (the law's
   !> numbers copied to locals first: the loop then vectorises). Pairs inside the linear
   !> core (rare) get |U'(r_m)|/r in a second, scalar loop run only when the chunk has any.
-  subroutine lj_chunk(l, nk, r2s, cs)
+  subroutine lj_chunk(l, nk, r2s, cs, tab)
     type(lj_law_t), intent(in) :: l
     integer, intent(in) :: nk
     real(dp), intent(in) :: r2s(nk)
     real(dp), intent(out) :: cs(nk)
-    real(dp) :: c4p, rm2, rc2
-    integer :: m, cores, core
+    type(pair_table_t), intent(in), optional :: tab   !< the law's table (when on), any p
+    real(dp) :: c4p, rm2, rc2, lo2, hi2, d
+    integer :: m, cores, core, shift
+    integer(i8) :: tn, base, k
+    if (present(tab)) then
+      if (tab%on) then   ! the table between r_m and R; the core and the cut-off as below
+        rm2 = l%rm2; rc2 = l%rc2
+        tn = tab%n; shift = tab%shift; base = tab%base; lo2 = tab%lo2; hi2 = tab%hi2
+        do m = 1, nk
+          call table_seg(r2s(m), lo2, hi2, tn, shift, base, k, d)
+          cs(m) = (tab%c(1, k) + d*(tab%c(2, k) + d*(tab%c(3, k) + d*tab%c(4, k))))* &
+               merge(1.0_dp, 0.0_dp, r2s(m) < rc2)
+        end do
+        ! (no core count in the loop above: with it, it does not vectorise)
+        if (minval(r2s(1:nk)) > rm2) return
+        do m = 1, nk
+          if (r2s(m) <= rm2) cs(m) = l%fcore*sqrt(1.0_dp/r2s(m))
+        end do
+        return
+      end if
+    end if
     if (l%kernel /= kernel_lj6) then
       call lj_kernel(l, r2s, cs)
       return
@@ -217,9 +248,131 @@ contains
     end function u_pair
   end function lj_energy
 
+  !> The segment k of u = r^2 in a table (module pair_table) and the offset d = u - u_k into
+  !> it: one clamp, one shift, no square root, no division. The loops then evaluate the
+  !> piece c(q..q+3, k) as c1 + d (c2 + d (c3 + d c4)) themselves (inlined: a routine holding
+  !> the cubic too was not inlined by GCC, and its loops did not vectorise).
+  pure elemental subroutine table_seg(u, lo2, hi2, n, shift, base, k, d)
+    real(dp), intent(in) :: u, lo2, hi2
+    integer(i8), intent(in) :: n, base
+    integer, intent(in) :: shift
+    integer(i8), intent(out) :: k   ! 64-bit: with a default integer the loops do not vectorise
+    real(dp), intent(out) :: d
+    real(dp) :: uc
+    uc = min(max(u, lo2), hi2)
+    k = max(1_i8, min(n, ishft(transfer(uc, 0_i8), -shift) - base))
+    d = uc - transfer(ishft(base + k, shift), 1.0_dp)
+  end subroutine table_seg
+
+  !> Every quantity of table t at u = r^2, through the routines the pair loops use.
+  subroutine table_values(t, u, v)
+    type(pair_table_t), intent(in) :: t
+    real(dp), intent(in) :: u
+    real(dp), intent(out) :: v(:)
+    integer(i8) :: k
+    integer :: q
+    real(dp) :: d
+    call table_seg(u, t%lo2, t%hi2, int(t%n, i8), t%shift, t%base, k, d)
+    do q = 1, t%nq
+      v(q) = t%c(4*q - 3, k) + d*(t%c(4*q - 2, k) + d*(t%c(4*q - 1, k) + d*t%c(4*q, k)))
+    end do
+  end subroutine table_values
+
+  !> The coarsest table of `law` (nq quantities, u = r^2 in [lo2, hi2]) whose largest
+  !> relative error, measured against the law on samples + 1 points of every segment (and
+  !> hi2), is <= requested/margin; ok = .false. when max_bits does not reach it (t: the finest).
+  subroutine table_fit(law, nq, lo2, hi2, requested, t, ok)
+    procedure(law_i) :: law
+    integer, intent(in) :: nq
+    real(dp), intent(in) :: lo2, hi2, requested
+    type(pair_table_t), intent(out) :: t
+    logical, intent(out) :: ok
+    integer :: bits, k, j, q, ns
+    real(dp) :: u0, u1, d, se, e
+    real(dp) :: v(nq), dv(nq), mg(nq), got(nq)
+    ok = .false.
+    do bits = 1, max_bits
+      call table_pieces(law, nq, lo2, hi2, bits, t)
+      t%requested = requested
+      se = 0
+      ns = 0
+      t%max_err = 0
+      do k = 1, t%n
+        call segment_bounds(t, k, u0, u1)
+        u0 = max(lo2, u0)
+        u1 = min(hi2, u1)
+        do j = 0, samples
+          d = real(j, dp)/real(samples + 1, dp)
+          if (k == t%n .and. j == samples) d = 1      ! hi2 itself
+          call law(u0 + d*(u1 - u0), v, dv, mg)
+          call table_values(t, u0 + d*(u1 - u0), got)
+          do q = 1, nq
+            e = abs(got(q) - v(q))/mg(q)
+            t%max_err = max(t%max_err, e)
+            se = se + e*e
+            ns = ns + 1
+          end do
+        end do
+      end do
+      t%rms_err = sqrt(se/max(1, ns))
+      if (t%max_err*margin <= requested) then
+        ok = .true.
+        return
+      end if
+    end do
+  end subroutine table_fit
+
+  !> Table of the dipole law over r^2 in [lo2, hi2] [D1^2]: quantity 1 the force factor s5 =
+  !> r^-5 - shift4 r^-1 (error relative to r^-5 + shift4 r^-1), quantity 2 r^-3 (friction
+  !> sums); the reference is dipole_kernel. See table_fit for ok.
+  subroutine dipole_table(shift4, lo2, hi2, requested, t, ok)
+    real(dp), intent(in) :: shift4, lo2, hi2, requested
+    type(pair_table_t), intent(out) :: t
+    logical, intent(out) :: ok
+    call table_fit(law, 2, lo2, hi2, requested, t, ok)
+  contains
+    subroutine law(u, v, dv, mag)
+      real(dp), intent(in) :: u
+      real(dp), intent(out) :: v(:), dv(:), mag(:)
+      call dipole_kernel(u, shift4, v(1), v(2))
+      dv(1) = -2.5_dp*u**(-3.5_dp) + 0.5_dp*shift4*u**(-1.5_dp)
+      dv(2) = -1.5_dp*u**(-2.5_dp)
+      mag(1) = u**(-2.5_dp) + shift4*u**(-0.5_dp)
+      mag(2) = v(2)
+    end subroutine law
+  end subroutine dipole_table
+
+  !> Table of the Lennard-Jones law l over r^2 in [r_m^2, R^2] [a^2] (the linear core below
+  !> r_m and the zero beyond R stay exact in the loops): the force factor of lj_kernel, error
+  !> relative to the magnitudes of its two terms, 4 p U0 r^-2 (2 q^2 + q) (the force itself
+  !> vanishes at the well's bottom). See table_fit for ok.
+  subroutine lj_table(l, requested, t, ok)
+    type(lj_law_t), intent(in) :: l
+    real(dp), intent(in) :: requested
+    type(pair_table_t), intent(out) :: t
+    logical, intent(out) :: ok
+    call table_fit(law, 1, l%rm2, l%rc2, requested, t, ok)
+  contains
+    subroutine law(u, v, dv, mag)
+      real(dp), intent(in) :: u
+      real(dp), intent(out) :: v(:), dv(:), mag(:)
+      real(dp) :: a, b, p
+      type(lj_law_t) :: inside
+      p = real(l%p, dp)
+      inside = l
+      inside%rm2 = 0          ! the power law at u = r_m^2 too (the piece's end)
+      inside%rc2 = huge(1.0_dp)
+      call lj_kernel(inside, u, v(1))
+      a = 2*4.0_dp**p*u**(-p - 1)          ! s = c4p (a - b)
+      b = 2.0_dp**p*u**(-p/2 - 1)
+      dv(1) = l%c4p*((-p - 1)*a - (-p/2 - 1)*b)/u
+      mag(1) = l%c4p*(a + b)
+    end subroutine law
+  end subroutine lj_table
+
   !> O(N^2) reference: every pair once, Newton's third law applied exactly.
   !> Adds to fx, fy (n) [m1 g]; if with_r3, adds to s3 (n).
-  subroutine pair_forces_all(n, x, y, mu, wsin, k_pair, with_r3, fx, fy, s3, r2min, law)
+  subroutine pair_forces_all(n, x, y, mu, wsin, k_pair, with_r3, fx, fy, s3, r2min, law, tab)
     integer, intent(in) :: n
     real(dp), intent(in) :: x(n), y(n)       !< positions [D1]
     real(dp), intent(in) :: mu(n)            !< relative moments mu_i/mu1
@@ -230,9 +383,11 @@ contains
     real(dp), intent(inout) :: s3(n)         !< sum_j wsin_j r_ij^-3
     real(dp), intent(out) :: r2min           !< smallest squared pair distance [D1^2]
     type(lj_law_t), intent(in), optional :: law   !< Lennard-Jones instead of the dipole law
+    type(pair_table_t), intent(in), optional :: tab   !< the law's table (used when on)
     integer :: dummy(1)
     call threaded_pass(mode_all, kernel_of(law), law_of(law), split_t(), n, x, y, mu, wsin, &
-         k_pair, 0.0_dp, 0.0_dp, 0.0_dp, .false., with_r3, dummy, dummy, fx, fy, s3, r2min)
+         k_pair, 0.0_dp, 0.0_dp, 0.0_dp, .false., with_r3, dummy, dummy, fx, fy, s3, r2min, &
+         tab=tab)
   end subroutine pair_forces_all
 
   !> Half neighbour list (pairs i < j stored once, CSR: the neighbours of i
@@ -240,7 +395,7 @@ contains
   !> are skipped when check is set (the thesis variant r_c = r_v uses every listed pair);
   !> with a split (dipole), pairs are weighted by its near side S(r).
   subroutine pair_forces_list(n, x, y, mu, wsin, k_pair, rc2, shift4, check, with_r3, &
-       start, nbr, fx, fy, s3, r2min, law, own, split, rstart, rlo, rhi)
+       start, nbr, fx, fy, s3, r2min, law, own, split, rstart, rlo, rhi, tab)
     integer, intent(in) :: n
     real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair
     real(dp), intent(in) :: rc2       !< squared cut-off [D1^2]
@@ -256,14 +411,16 @@ contains
     !> the same list as contiguous ranges of j (nlist_t; dipole with check only): used when
     !> the rows are long
     integer, intent(in), optional, contiguous :: rstart(:), rlo(:), rhi(:)
+    type(pair_table_t), intent(in), optional :: tab   !< the law's table (used when on)
     type(split_t) :: sp
     if (present(split)) sp = split
     if (present(rstart) .and. check .and. .not. present(law)) then
       call threaded_pass(mode_list, kernel_dipole, lj_law_t(), sp, n, x, y, mu, wsin, k_pair, &
-           0.0_dp, rc2, shift4, check, with_r3, start, nbr, fx, fy, s3, r2min, own, rstart, rlo, rhi)
+           0.0_dp, rc2, shift4, check, with_r3, start, nbr, fx, fy, s3, r2min, own, rstart, rlo, &
+           rhi, tab=tab)
     else
       call threaded_pass(mode_list, kernel_of(law), law_of(law), sp, n, x, y, mu, wsin, k_pair, &
-           0.0_dp, rc2, shift4, check, with_r3, start, nbr, fx, fy, s3, r2min, own)
+           0.0_dp, rc2, shift4, check, with_r3, start, nbr, fx, fy, s3, r2min, own, tab=tab)
     end if
   end subroutine pair_forces_list
 
@@ -282,19 +439,20 @@ contains
   !> The far field: every pair at r >= r_c, O(N^2), for the tail correction (recomputed
   !> every tail_every steps); with a split, every pair at r >= r_in weighted by 1 - S(r).
   !> Overwrites fx, fy, s3.
-  subroutine pair_forces_far(n, x, y, mu, wsin, k_pair, rc2, with_r3, fx, fy, s3, split)
+  subroutine pair_forces_far(n, x, y, mu, wsin, k_pair, rc2, with_r3, fx, fy, s3, split, tab)
     integer, intent(in) :: n
     real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair, rc2
     logical, intent(in) :: with_r3
     real(dp), intent(out) :: fx(n), fy(n), s3(n)
     type(split_t), intent(in) :: split
+    type(pair_table_t), intent(in), optional :: tab   !< the dipole table (used when on)
     integer :: dummy(1)
     real(dp) :: r2min, r2_from
     fx = 0; fy = 0; s3 = 0
     r2_from = rc2
     if (split%on) r2_from = split%ri2
     call threaded_pass(mode_all, kernel_dipole, lj_law_t(), split, n, x, y, mu, wsin, k_pair, &
-         r2_from, 0.0_dp, 0.0_dp, .false., with_r3, dummy, dummy, fx, fy, s3, r2min)
+         r2_from, 0.0_dp, 0.0_dp, .false., with_r3, dummy, dummy, fx, fy, s3, r2min, tab=tab)
   end subroutine pair_forces_far
 
   !> Rows i_lo..i_hi of the all-pairs triangle; pairs with r^2 < r2_min are
@@ -302,7 +460,7 @@ contains
   !> j <= hi_direct go to fx, fy, s3, those on j > hi_direct to the spill
   !> arrays sx, sy, ss (another thread owns those rows; see threaded_pass).
   subroutine rows_all(kernel, l, sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, &
-       r2_min, with_r3, fx, fy, s3, sx, sy, ss, r2low)
+       r2_min, with_r3, fx, fy, s3, sx, sy, ss, r2low, tab)
     integer, intent(in) :: kernel, i_lo, i_hi, hi_direct, n
     type(lj_law_t), intent(in) :: l
     type(split_t), intent(in) :: sp
@@ -311,6 +469,7 @@ contains
     real(dp), intent(inout) :: fx(n), fy(n), s3(n)
     real(dp), intent(inout) :: sx(*), sy(*), ss(*)
     real(dp), intent(inout) :: r2low   !< running minimum of r^2
+    type(pair_table_t), intent(in), optional :: tab
     integer :: i
     real(dp) :: fxi, fyi
     if (i_hi < i_lo) return
@@ -318,18 +477,18 @@ contains
       row_sums(:, i_lo:i_hi) = 0
       call dipole_ranges(sp, merge(side_far, side_none, sp%on), i_lo, i_hi, 1, min(n, hi_direct), &
            min(n, hi_direct), x, y, mu, wsin, k_pair, r2_min, huge(1.0_dp), 0.0_dp, with_r3, &
-           tri_start, tri_lo, tri_hi, fx, fy, s3, row_sums(:, i_lo:i_hi), r2low)
+           tri_start, tri_lo, tri_hi, fx, fy, s3, row_sums(:, i_lo:i_hi), r2low, tab)
       if (hi_direct < n) call dipole_ranges(sp, merge(side_far, side_none, sp%on), i_lo, i_hi, &
            hi_direct + 1, n, n, x, y, mu, wsin, k_pair, r2_min, huge(1.0_dp), 0.0_dp, with_r3, &
-           tri_start, tri_lo, tri_hi, sx, sy, ss, row_sums(:, i_lo:i_hi), r2low)
+           tri_start, tri_lo, tri_hi, sx, sy, ss, row_sums(:, i_lo:i_hi), r2low, tab)
       call add_row_sums(i_lo, i_hi, with_r3, row_sums(:, i_lo:i_hi), fx, fy, s3)
       return
     end if
     do i = i_lo, i_hi
       fxi = 0; fyi = 0
-      call row_segment(l, i, i + 1, min(n, hi_direct), n, x, y, fx, fy, fxi, fyi, r2low)
+      call row_segment(l, i, i + 1, min(n, hi_direct), n, x, y, fx, fy, fxi, fyi, r2low, tab)
       if (hi_direct < n) call row_segment(l, i, max(i + 1, hi_direct + 1), n, n, x, y, sx, sy, &
-           fxi, fyi, r2low)
+           fxi, fyi, r2low, tab)
       fx(i) = fx(i) + fxi
       fy(i) = fy(i) + fyi
     end do
@@ -338,12 +497,13 @@ contains
   !> Lennard-Jones pairs (i, j), j = j_lo..j_hi, of the triangle (contiguous j: vectorised),
   !> in chunks: distances, the law's kernel, sums. The action on i is added to fxi, fyi, the
   !> reaction to ax, ay(j).
-  subroutine row_segment(l, i, j_lo, j_hi, n, x, y, ax, ay, fxi, fyi, r2low)
+  subroutine row_segment(l, i, j_lo, j_hi, n, x, y, ax, ay, fxi, fyi, r2low, tab)
     integer, intent(in) :: i, j_lo, j_hi, n
     type(lj_law_t), intent(in) :: l
     real(dp), intent(in) :: x(n), y(n)
     real(dp), intent(inout) :: ax(*), ay(*)
     real(dp), intent(inout) :: fxi, fyi, r2low
+    type(pair_table_t), intent(in), optional :: tab
     integer, parameter :: chunk = 256
     integer :: j, j0, m, nk
     real(dp) :: xi, yi, low, gx, gy
@@ -361,7 +521,7 @@ contains
         r2s(m) = dxs(m)*dxs(m) + dys(m)*dys(m)
         low = min(low, r2s(m))
       end do
-      call lj_chunk(l, nk, r2s, cs)
+      call lj_chunk(l, nk, r2s, cs, tab)
       do m = 1, nk
         j = j0 + m - 1
         gx = gx + cs(m)*dxs(m)
@@ -380,7 +540,7 @@ contains
   !> chunk: gather and evaluate (vectorisable), then accumulate on i and scatter on j
   !> (reactions on j > hi_direct to the spill arrays, as in rows_all).
   subroutine rows_list(sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, shift4, &
-       check, with_r3, start, nbr, fx, fy, s3, sx, sy, ss, r2low)
+       check, with_r3, start, nbr, fx, fy, s3, sx, sy, ss, r2low, tab)
     type(split_t), intent(in) :: sp
     integer, intent(in) :: i_lo, i_hi, hi_direct, n
     real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair, rc2, shift4
@@ -392,8 +552,19 @@ contains
     integer, parameter :: chunk = 256
     integer :: i, j, m, k0, nk
     logical :: direct
-    real(dp) :: xi, yi, ci, wi, fxi, fyi, s3i, r2, keep, low
+    type(pair_table_t), intent(in), optional :: tab   !< the dipole table (used when on)
+    real(dp) :: xi, yi, ci, wi, fxi, fyi, s3i, r2, keep, low, d, ds(chunk)
+    integer(i8) :: kt, ks(chunk)
     real(dp) :: dxs(chunk), dys(chunk), cs(chunk), r3s(chunk)
+    logical :: tabled
+    integer :: shift
+    integer(i8) :: tn, base
+    real(dp) :: lo2, hi2
+    tabled = .false.
+    if (present(tab)) tabled = tab%on
+    if (tabled) then
+      tn = tab%n; shift = tab%shift; base = tab%base; lo2 = tab%lo2; hi2 = tab%hi2
+    end if
     low = r2low   ! local running minimum (see row_segment)
     do i = i_lo, i_hi
       xi = x(i); yi = y(i)
@@ -402,19 +573,40 @@ contains
       fxi = 0; fyi = 0; s3i = 0
       do k0 = start(i), start(i + 1) - 1, chunk
         nk = min(chunk, start(i + 1) - k0)
-        do m = 1, nk
-          j = nbr(k0 + m - 1)
-          dxs(m) = xi - x(j)
-          dys(m) = yi - y(j)
-          r2 = dxs(m)*dxs(m) + dys(m)*dys(m)
-          low = min(low, r2)
-          keep = 1
-          if (check) keep = merge(1.0_dp, 0.0_dp, r2 < rc2)
-          if (sp%on) keep = near_weight(sp, r2)
-          call dipole_kernel(r2, shift4, cs(m), r3s(m))
-          cs(m) = keep*ci*mu(j)*cs(m)
-          r3s(m) = keep*r3s(m)
-        end do
+        if (tabled) then   ! the same loop with the table's kernel
+          do m = 1, nk   ! (segments, then pieces: see rows_pairs)
+            j = nbr(k0 + m - 1)
+            dxs(m) = xi - x(j)
+            dys(m) = yi - y(j)
+            r2 = dxs(m)*dxs(m) + dys(m)*dys(m)
+            low = min(low, r2)
+            ! branch-free (the tests of the exact loop, not unswitched here, stop vectorisation):
+            ! S(r) is 1 without a split and 0 from r_c on, so this is the exact loop's weight
+            r3s(m) = merge(1.0_dp, 0.0_dp, r2 < rc2 .or. .not. check)*near_weight(sp, r2)  ! keep
+            cs(m) = r3s(m)*ci*mu(j)
+            call table_seg(r2, lo2, hi2, tn, shift, base, ks(m), ds(m))
+          end do
+          do m = 1, nk
+            kt = ks(m)
+            d = ds(m)
+            r3s(m) = r3s(m)*(tab%c(5, kt) + d*(tab%c(6, kt) + d*(tab%c(7, kt) + d*tab%c(8, kt))))
+            cs(m) = cs(m)*(tab%c(1, kt) + d*(tab%c(2, kt) + d*(tab%c(3, kt) + d*tab%c(4, kt))))
+          end do
+        else
+          do m = 1, nk
+            j = nbr(k0 + m - 1)
+            dxs(m) = xi - x(j)
+            dys(m) = yi - y(j)
+            r2 = dxs(m)*dxs(m) + dys(m)*dys(m)
+            low = min(low, r2)
+            keep = 1
+            if (check) keep = merge(1.0_dp, 0.0_dp, r2 < rc2)
+            if (sp%on) keep = near_weight(sp, r2)
+            call dipole_kernel(r2, shift4, cs(m), r3s(m))
+            cs(m) = keep*ci*mu(j)*cs(m)
+            r3s(m) = keep*r3s(m)
+          end do
+        end if
         direct = hi_direct >= n
         if (.not. direct) direct = maxval(nbr(k0:k0 + nk - 1)) <= hi_direct
         if (direct) then   ! the usual case: every j is ours
@@ -462,7 +654,7 @@ contains
   !> together with unlisted j that are beyond r_c and are masked out; exact for the Verlet rule,
   !> see neighbours). Reactions on j > hi_direct go to the spill arrays (see threaded_pass).
   subroutine rows_ranges(sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, shift4, &
-       with_r3, rstart, rlo, rhi, fx, fy, s3, sx, sy, ss, r2low)
+       with_r3, rstart, rlo, rhi, fx, fy, s3, sx, sy, ss, r2low, tab)
     type(split_t), intent(in) :: sp
     integer, intent(in) :: i_lo, i_hi, hi_direct, n
     real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair, rc2, shift4
@@ -471,15 +663,17 @@ contains
     real(dp), intent(inout) :: fx(n), fy(n), s3(n)
     real(dp), intent(inout) :: sx(*), sy(*), ss(*)
     real(dp), intent(inout) :: r2low   !< running minimum of r^2
+    type(pair_table_t), intent(in), optional :: tab
     integer :: side
     if (i_hi < i_lo) return
     row_sums(:, i_lo:i_hi) = 0
     side = merge(side_near, side_none, sp%on)
     call dipole_ranges(sp, side, i_lo, i_hi, 1, hi_direct, hi_direct, x, y, mu, wsin, k_pair, &
-         0.0_dp, rc2, shift4, with_r3, rstart, rlo, rhi, fx, fy, s3, row_sums(:, i_lo:i_hi), r2low)
+         0.0_dp, rc2, shift4, with_r3, rstart, rlo, rhi, fx, fy, s3, row_sums(:, i_lo:i_hi), r2low, &
+         tab)
     if (hi_direct < n) call dipole_ranges(sp, side, i_lo, i_hi, hi_direct + 1, n, n, x, y, mu, &
          wsin, k_pair, 0.0_dp, rc2, shift4, with_r3, rstart, rlo, rhi, sx, sy, ss, &
-         row_sums(:, i_lo:i_hi), r2low)
+         row_sums(:, i_lo:i_hi), r2low, tab)
     call add_row_sums(i_lo, i_hi, with_r3, row_sums(:, i_lo:i_hi), fx, fy, s3)
   end subroutine rows_ranges
 
@@ -495,7 +689,7 @@ contains
   !> caller owns (<= n); the rest runs lane by lane. a3, s3 get exact zeros without with_r3.
   !> r2low: running minimum of r^2 over the ranges.
   subroutine dipole_ranges(sp, side, i_lo, i_hi, j_min, j_max, j_pad, x, y, mu, wsin, k_pair, &
-       r2_lo, r2_hi, shift4, with_r3, rstart, rlo, rhi, ax, ay, a3, rsum, r2low)
+       r2_lo, r2_hi, shift4, with_r3, rstart, rlo, rhi, ax, ay, a3, rsum, r2low, tab)
     type(split_t), intent(in) :: sp
     integer, intent(in) :: side, i_lo, i_hi, j_min, j_max, j_pad
     ! explicit shapes (bounded by j_pad or i_hi): GCC does not vectorise the loop over
@@ -507,7 +701,12 @@ contains
     real(dp), intent(inout) :: ax(j_pad), ay(j_pad), a3(j_pad)
     real(dp), intent(inout) :: rsum(3, i_lo:i_hi)   !< per row: the action on i (x, y, r^-3 sum)
     real(dp), intent(inout) :: r2low
+    type(pair_table_t), intent(in), optional :: tab   !< the dipole table (used when on)
     integer :: i, r, j, j0, j_lo, j_hi, l, off, k
+    logical :: tabled
+    integer :: shift
+    integer(i8) :: tn, base, kl(lanes)
+    real(dp) :: lo2, hi2, dxl(lanes), dyl(lanes), dl(lanes)
     !> on(l + off): 1 for the lanes of a block up to the range's end, 0 past it
     real(dp), parameter :: on(2*lanes - 1) = [(merge(1.0_dp, 0.0_dp, k <= lanes), k = 1, 2*lanes - 1)]
     real(dp) :: xi, yi, ci, wi, dx, dy, r2, c, r3, keep3, wa, wb, low
@@ -522,22 +721,55 @@ contains
       wa = 1; wb = -1
     end if
     low = r2low
-    do i = i_lo, i_hi
-      xi = x(i); yi = y(i)
-      ci = k_pair*mu(i)
-      wi = wsin(i)
-      gx = 0; gy = 0; g3 = 0
-      do r = rstart(i), rstart(i + 1) - 1
-        j_lo = max(rlo(r), j_min)
-        j_hi = min(rhi(r), j_max)
-        j0 = j_lo
-        do while (j0 <= j_hi .and. j0 + lanes - 1 <= j_pad)   ! whole blocks (vectorised)
-          off = lanes - min(lanes, j_hi - j0 + 1)               ! lanes past j_hi are off
-          do l = 1, lanes
-            j = j0 + l - 1
+    tabled = .false.
+    if (present(tab)) tabled = tab%on
+    if (tabled) then   ! the same loops with the table's kernel (lane_pair_tab)
+      tn = tab%n; shift = tab%shift; base = tab%base; lo2 = tab%lo2; hi2 = tab%hi2
+      do i = i_lo, i_hi
+        xi = x(i); yi = y(i)
+        ci = k_pair*mu(i)
+        wi = wsin(i)
+        gx = 0; gy = 0; g3 = 0
+        do r = rstart(i), rstart(i + 1) - 1
+          j_lo = max(rlo(r), j_min)
+          j_hi = min(rhi(r), j_max)
+          j0 = j_lo
+          do while (j0 <= j_hi .and. j0 + lanes - 1 <= j_pad)   ! whole blocks (vectorised)
+            off = lanes - min(lanes, j_hi - j0 + 1)               ! lanes past j_hi are off
+            do l = 1, lanes   ! segments first, then the pieces (see rows_pairs)
+              j = j0 + l - 1
+              dxl(l) = xi - x(j)
+              dyl(l) = yi - y(j)
+              call table_seg(dxl(l)*dxl(l) + dyl(l)*dyl(l), lo2, hi2, tn, shift, base, kl(l), &
+                   dl(l))
+            end do
+            do l = 1, lanes
+              j = j0 + l - 1
+              dx = dxl(l)
+              dy = dyl(l)
+              call lane_pair_tab(tab%c, tn, kl(l), dl(l), sp, wa, wb, on(l + off), r2_lo, r2_hi, &
+                   dx, dy, r2, c, r3)
+              low = min(low, r2)
+              c = ci*mu(j)*c
+              r3 = keep3*r3
+              gx(l) = gx(l) + c*dx
+              gy(l) = gy(l) + c*dy
+              g3(l) = g3(l) + wsin(j)*r3
+              ax(j) = ax(j) - c*dx
+              ay(j) = ay(j) - c*dy
+              a3(j) = a3(j) + wi*r3
+            end do
+            j0 = j0 + lanes
+          end do
+          ! the rest (< lanes), lane by lane: the same body as the blocks'; one loop with a
+          ! variable trip count for both measured 0.90x (the block loop then has an epilogue)
+          do j = j0, j_hi
+            l = j - j0 + 1
             dx = xi - x(j)
             dy = yi - y(j)
-            call lane_pair(sp, wa, wb, on(l + off), r2_lo, r2_hi, shift4, dx, dy, r2, c, r3)
+            call table_seg(dx*dx + dy*dy, lo2, hi2, tn, shift, base, kl(1), dl(1))
+            call lane_pair_tab(tab%c, tn, kl(1), dl(1), sp, wa, wb, 1.0_dp, r2_lo, r2_hi, dx, dy, &
+                 r2, c, r3)
             low = min(low, r2)
             c = ci*mu(j)*c
             r3 = keep3*r3
@@ -548,30 +780,63 @@ contains
             ay(j) = ay(j) - c*dy
             a3(j) = a3(j) + wi*r3
           end do
-          j0 = j0 + lanes
         end do
-        ! the rest (< lanes), lane by lane: the same body as the blocks'; one loop with a
-        ! variable trip count for both measured 0.90x (the block loop then has an epilogue)
-        do j = j0, j_hi
-          l = j - j0 + 1
-          dx = xi - x(j)
-          dy = yi - y(j)
-          call lane_pair(sp, wa, wb, 1.0_dp, r2_lo, r2_hi, shift4, dx, dy, r2, c, r3)
-          low = min(low, r2)
-          c = ci*mu(j)*c
-          r3 = keep3*r3
-          gx(l) = gx(l) + c*dx
-          gy(l) = gy(l) + c*dy
-          g3(l) = g3(l) + wsin(j)*r3
-          ax(j) = ax(j) - c*dx
-          ay(j) = ay(j) - c*dy
-          a3(j) = a3(j) + wi*r3
-        end do
+        rsum(1, i) = rsum(1, i) + sum(gx)
+        rsum(2, i) = rsum(2, i) + sum(gy)
+        rsum(3, i) = rsum(3, i) + sum(g3)
       end do
-      rsum(1, i) = rsum(1, i) + sum(gx)
-      rsum(2, i) = rsum(2, i) + sum(gy)
-      rsum(3, i) = rsum(3, i) + sum(g3)
-    end do
+    else
+      do i = i_lo, i_hi
+        xi = x(i); yi = y(i)
+        ci = k_pair*mu(i)
+        wi = wsin(i)
+        gx = 0; gy = 0; g3 = 0
+        do r = rstart(i), rstart(i + 1) - 1
+          j_lo = max(rlo(r), j_min)
+          j_hi = min(rhi(r), j_max)
+          j0 = j_lo
+          do while (j0 <= j_hi .and. j0 + lanes - 1 <= j_pad)   ! whole blocks (vectorised)
+            off = lanes - min(lanes, j_hi - j0 + 1)               ! lanes past j_hi are off
+            do l = 1, lanes
+              j = j0 + l - 1
+              dx = xi - x(j)
+              dy = yi - y(j)
+              call lane_pair(sp, wa, wb, on(l + off), r2_lo, r2_hi, shift4, dx, dy, r2, c, r3)
+              low = min(low, r2)
+              c = ci*mu(j)*c
+              r3 = keep3*r3
+              gx(l) = gx(l) + c*dx
+              gy(l) = gy(l) + c*dy
+              g3(l) = g3(l) + wsin(j)*r3
+              ax(j) = ax(j) - c*dx
+              ay(j) = ay(j) - c*dy
+              a3(j) = a3(j) + wi*r3
+            end do
+            j0 = j0 + lanes
+          end do
+          ! the rest (< lanes), lane by lane: the same body as the blocks'; one loop with a
+          ! variable trip count for both measured 0.90x (the block loop then has an epilogue)
+          do j = j0, j_hi
+            l = j - j0 + 1
+            dx = xi - x(j)
+            dy = yi - y(j)
+            call lane_pair(sp, wa, wb, 1.0_dp, r2_lo, r2_hi, shift4, dx, dy, r2, c, r3)
+            low = min(low, r2)
+            c = ci*mu(j)*c
+            r3 = keep3*r3
+            gx(l) = gx(l) + c*dx
+            gy(l) = gy(l) + c*dy
+            g3(l) = g3(l) + wsin(j)*r3
+            ax(j) = ax(j) - c*dx
+            ay(j) = ay(j) - c*dy
+            a3(j) = a3(j) + wi*r3
+          end do
+        end do
+        rsum(1, i) = rsum(1, i) + sum(gx)
+        rsum(2, i) = rsum(2, i) + sum(gy)
+        rsum(3, i) = rsum(3, i) + sum(g3)
+      end do
+    end if
     r2low = low
   end subroutine dipole_ranges
 
@@ -608,6 +873,25 @@ contains
     r3 = keep*r3
   end subroutine lane_pair
 
+  !> lane_pair with the dipole table (c(8, n), module pair_table) instead of dipole_kernel:
+  !> segment k and offset d of r^2 = dx^2 + dy^2 from table_seg.
+  pure subroutine lane_pair_tab(tc, tn, k, d, sp, wa, wb, lane, r2_lo, r2_hi, dx, dy, r2, c, r3)
+    integer(i8), intent(in) :: tn, k
+    real(dp), intent(in) :: tc(8, tn), d
+    type(split_t), intent(in) :: sp
+    real(dp), intent(in) :: wa, wb, lane, r2_lo, r2_hi, dx, dy
+    real(dp), intent(out) :: r2, c, r3
+    real(dp) :: keep, s5, d2
+    d2 = dx*dx + dy*dy
+    keep = merge(1.0_dp, 0.0_dp, d2 >= r2_lo)*merge(1.0_dp, 0.0_dp, d2 < r2_hi)*lane
+    keep = keep*(wa + wb*near_weight(sp, d2))
+    r2 = d2 + (1.0_dp - lane)*huge(1.0_dp)
+    s5 = tc(1, k) + d*(tc(2, k) + d*(tc(3, k) + d*tc(4, k)))
+    r3 = tc(5, k) + d*(tc(6, k) + d*(tc(7, k) + d*tc(8, k)))
+    c = keep*s5
+    r3 = keep*r3
+  end subroutine lane_pair_tab
+
   !> Rows i_lo..i_hi of a half list taken as one flat sequence of pairs (own(k) = the row i of
   !> pair k): chunks of 256 pairs whatever the row lengths (a row holds ~5 pairs at the
   !> production cut-offs, too few to vectorise row by row). Per chunk, one vectorised loop of
@@ -616,7 +900,7 @@ contains
   !> set, and the r^-3 friction sums (with_r3) go along. Reactions on j > hi_direct go to the
   !> spill arrays sx, sy, ss (see threaded_pass).
   subroutine rows_pairs(kernel, l, sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, &
-       shift4, check, with_r3, start, nbr, own, fx, fy, s3, sx, sy, ss, r2low)
+       shift4, check, with_r3, start, nbr, own, fx, fy, s3, sx, sy, ss, r2low, tab)
     integer, intent(in) :: kernel, i_lo, i_hi, hi_direct, n
     type(lj_law_t), intent(in) :: l
     type(split_t), intent(in) :: sp
@@ -629,6 +913,16 @@ contains
     integer :: i, j, m, k, k0, nk, k_hi
     real(dp) :: low, rk2, s5, r3p, keep, keep3
     real(dp) :: r2s(chunk), pw(chunk, 4)   ! per pair: x_i - x_j, y_i - y_j, force factor, r^-3
+    type(pair_table_t), intent(in), optional :: tab   !< the law's table (used when on)
+    logical :: tabled
+    integer :: shift
+    integer(i8) :: tn, base, kt, ks(chunk)
+    real(dp) :: lo2, hi2, d, ds(chunk)
+    tabled = .false.
+    if (present(tab)) tabled = tab%on
+    if (tabled) then
+      tn = tab%n; shift = tab%shift; base = tab%base; lo2 = tab%lo2; hi2 = tab%hi2
+    end if
     low = r2low
     keep3 = merge(1.0_dp, 0.0_dp, with_r3)
     rk2 = huge(1.0_dp)
@@ -645,7 +939,21 @@ contains
         r2s(m) = pw(m, 1)*pw(m, 1) + pw(m, 2)*pw(m, 2)
         low = min(low, r2s(m))
       end do
-      if (kernel == kernel_dipole) then
+      if (kernel == kernel_dipole .and. tabled) then
+        ! segments first, then the pieces: in one loop GCC 12 vectorises neither
+        do m = 1, nk
+          call table_seg(r2s(m), lo2, hi2, tn, shift, base, ks(m), ds(m))
+        end do
+        do m = 1, nk
+          kt = ks(m)
+          d = ds(m)
+          keep = merge(1.0_dp, 0.0_dp, r2s(m) < rk2)*near_weight(sp, r2s(m))   ! as in rows_list
+          s5 = tab%c(1, kt) + d*(tab%c(2, kt) + d*(tab%c(3, kt) + d*tab%c(4, kt)))
+          r3p = tab%c(5, kt) + d*(tab%c(6, kt) + d*(tab%c(7, kt) + d*tab%c(8, kt)))
+          pw(m, 3) = keep*s5
+          pw(m, 4) = keep*keep3*r3p
+        end do
+      else if (kernel == kernel_dipole) then
         do m = 1, nk
           keep = merge(1.0_dp, 0.0_dp, r2s(m) < rk2)
           if (sp%on) keep = near_weight(sp, r2s(m))   ! loop-invariant test (unswitched)
@@ -654,7 +962,7 @@ contains
           pw(m, 4) = keep*keep3*r3p   ! 0 without the friction sums (s3 then gets + 0)
         end do
       else
-        call lj_chunk(l, nk, r2s, pw(:, 3))
+        call lj_chunk(l, nk, r2s, pw(:, 3), tab)
       end if
       call chunk_sums(nk, own(k0:k0 + nk - 1), nbr(k0:k0 + nk - 1), hi_direct, &
            kernel == kernel_dipole, pw, fx, fy, s3, sx, sy, ss, mu, wsin, k_pair)
@@ -763,7 +1071,7 @@ contains
   !> spills are added in thread order and reset to zero. The result does not
   !> depend on scheduling, and on the thread count only through round-off.
   subroutine threaded_pass(mode, kernel, l, sp, n, x, y, mu, wsin, k_pair, r2_min, rc2, &
-       shift4, check, with_r3, start, nbr, fx, fy, s3, r2low, own, rstart, rlo, rhi)
+       shift4, check, with_r3, start, nbr, fx, fy, s3, r2low, own, rstart, rlo, rhi, tab)
     !$ use omp_lib, only: omp_get_max_threads, omp_get_thread_num
     integer, intent(in) :: mode, kernel, n
     type(lj_law_t), intent(in) :: l
@@ -775,6 +1083,7 @@ contains
     real(dp), intent(out) :: r2low
     integer, intent(in), optional, contiguous :: own(:)   !< row of each listed pair (lists only)
     integer, intent(in), optional, contiguous :: rstart(:), rlo(:), rhi(:)   !< the list's ranges
+    type(pair_table_t), intent(in), optional :: tab   !< the law's table (used when on)
     real(dp) :: low(64)
     integer :: nt, t, lo, hi, i, u
     integer :: bound(0:64)
@@ -841,16 +1150,16 @@ contains
       real(dp), intent(inout) :: ax(n), ay(n), a3(n), bx(*), by(*), b3(*), lw
       if (mode == mode_all) then
         call rows_all(kernel, l, sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, r2_min, &
-             with_r3, ax, ay, a3, bx, by, b3, lw)
+             with_r3, ax, ay, a3, bx, by, b3, lw, tab)
       else if (kernel == kernel_dipole .and. long_rows) then
         call rows_ranges(sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, shift4, &
-             with_r3, rstart, rlo, rhi, ax, ay, a3, bx, by, b3, lw)
+             with_r3, rstart, rlo, rhi, ax, ay, a3, bx, by, b3, lw, tab)
       else if (kernel == kernel_dipole .and. mid_rows) then
         call rows_list(sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, &
-             shift4, check, with_r3, start, nbr, ax, ay, a3, bx, by, b3, lw)
+             shift4, check, with_r3, start, nbr, ax, ay, a3, bx, by, b3, lw, tab)
       else
         call rows_pairs(kernel, l, sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, &
-             shift4, check, with_r3, start, nbr, own, ax, ay, a3, bx, by, b3, lw)
+             shift4, check, with_r3, start, nbr, own, ax, ay, a3, bx, by, b3, lw, tab)
       end if
     end subroutine rows
     !> Last row of the first k shares (0 for k = 0, n for k = nt).

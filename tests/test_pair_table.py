@@ -1,0 +1,158 @@
+"""Pair evaluation from a table in r^2 (&integration / &steric pair_eval = 'table', issue 27):
+the table meets the requested relative error on a dense grid of r, an unreachable request is
+refused naming the key and the range, the default stays the exact law, and a run with the
+table conserves energy as the exact law does."""
+from __future__ import annotations
+
+import json
+import subprocess
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from pyorch.run import engine_executable
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def probe(api: Any, law: int, p: int, shift: float, r_lo: float, r_hi: float, req: float,
+          r: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, int, int]:
+    tab, ex, mag, max_err, _rms, segments, code = api.pair_table_probe(
+        law, p, shift, r_lo, r_hi, req, r)
+    return tab, ex, mag, max_err, segments, code
+
+
+@pytest.mark.parametrize("req", [1e-3, 1e-6, 1e-10])
+@pytest.mark.parametrize("shift", [0.0, 4.13 ** -4])
+def test_dipole_table_within_request_on_dense_grid(api: Any, req: float, shift: float) -> None:
+    """Force factor r^-5 - shift r^-1 and r^-3 over [0.5, 97] D1 (the standard cell's
+    diagonal) on 200 001 distances (uniform in r, not the table's own samples)."""
+    r = np.linspace(0.5, 97.0, 200001)
+    tab, ex, mag, max_err, segments, code = probe(api, 1, 0, shift, 0.5, 97.0, req, r)
+    assert code == 0
+    err = np.abs(tab - ex) / mag
+    assert err.max() <= req, (err.max(), req)
+    assert max_err <= req
+    # not trivially exact: a coarser request gives a smaller table with a larger error
+    assert err.max() > 1e-3 * req
+    if req >= 1e-6:
+        assert segments < 2000
+
+
+@pytest.mark.parametrize("p", [6, 7, 12])
+def test_lj_table_within_request_on_dense_grid(api: Any, p: int) -> None:
+    """Lennard-Jones between r_m = 1.8 and R = 5 a: error relative to the magnitudes of the
+    two terms (the force itself vanishes at the well's bottom)."""
+    r = np.linspace(1.8, 5.0, 100001)[:-1]
+    tab, ex, mag, _max_err, _seg, code = probe(api, 2, p, 0.0, 1.8, 5.0, 1e-7, r)
+    assert code == 0
+    err = np.abs(tab[:, 0] - ex[:, 0]) / mag[:, 0]
+    assert err.max() <= 1e-7
+
+
+def test_unreachable_error_reported(api: Any) -> None:
+    r = np.array([1.0])
+    *_, max_err, _seg, code = probe(api, 1, 0, 0.0, 0.5, 97.0, 1e-15, r)
+    assert code == 2 and max_err > 1e-15
+
+
+def _run(path: Path, out: Path) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([str(engine_executable()), str(path), "--out", str(out), "--quiet"],
+                          capture_output=True, text=True, timeout=300)
+
+
+def test_unreachable_request_refused_naming_key_and_range(make_scene: Any,
+                                                          tmp_path: Path) -> None:
+    path = make_scene("bench_compression", {"integration.pair_eval": "table",
+                                            "integration.pair_table_error": 1e-15})
+    r = _run(path, tmp_path / "o")
+    assert r.returncode == 2
+    msg = r.stderr + r.stdout
+    assert "&integration pair_table_error" in msg and "allowed [" in msg
+    assert "not reached over r in [" in msg
+    assert not (tmp_path / "o" / "piston.dat").exists()
+
+
+def test_table_needs_min_distance(make_scene: Any, tmp_path: Path) -> None:
+    path = make_scene("bench_compression", {"integration.pair_eval": "table",
+                                            "physics.min_distance": 0.0})
+    r = _run(path, tmp_path / "o")
+    assert r.returncode == 2
+    assert "min_distance" in r.stderr + r.stdout
+
+
+def test_lj_unreachable_request_refused(tmp_path: Path) -> None:
+    from pyorch.scene import Scene
+    sc = Scene.read(ROOT / "runs/lj_demo.nml").with_overrides(
+        {"steric.pair_eval": "table", "steric.pair_table_error": 1e-15})
+    path = sc.write(tmp_path / "lj.nml")
+    r = _run(path, tmp_path / "o")
+    assert r.returncode == 2
+    assert "&steric pair_table_error" in r.stderr + r.stdout
+
+
+def _nve(make_scene: Any, tmp_path: Path, ev: str) -> tuple[np.ndarray, dict[str, Any]]:
+    """All pairs, fixed piston, no friction, no drag: a conservative bed for 4 T."""
+    path = make_scene("bench_compression", {
+        "protocol.piston": "fixed", "protocol.t_end": 4.0, "physics.dry_friction": "none",
+        "output.energy_every": 20, "output.piston_every": 20, "particles.speed_init": 0.5,
+        "integration.pair_eval": ev}, name=f"nve_{ev}.nml")
+    out = tmp_path / ev
+    r = _run(path, out)
+    assert r.returncode == 0, r.stderr
+    e = np.loadtxt(out / "energy.dat", skiprows=2)
+    return e, json.loads((out / "run.json").read_text())
+
+
+def test_table_run_conserves_energy_like_exact(make_scene: Any, tmp_path: Path) -> None:
+    e_ex, j_ex = _nve(make_scene, tmp_path, "exact")
+    e_tb, j_tb = _nve(make_scene, tmp_path, "table")
+    assert j_ex["pair_eval"] == "exact" and j_ex["pair_max_rel_error"] == 0
+    assert j_tb["pair_eval"] == "table"
+    assert 0 < j_tb["pair_max_rel_error"] <= 1e-6
+    assert 0 < j_tb["pair_typical_rel_error"] < j_tb["pair_max_rel_error"]
+    drift_ex = np.abs(e_ex[:, -1] - e_ex[0, -1]).max()
+    drift_tb = np.abs(e_tb[:, -1] - e_tb[0, -1]).max()
+    assert drift_tb <= 2 * drift_ex + 1e-6 * abs(e_ex[0, 3])
+    # the table moves the particles, by about its error (not bit-identical, not far off)
+    assert not np.array_equal(e_ex[:, 2], e_tb[:, 2])
+    assert np.allclose(e_ex[:, 3], e_tb[:, 3], rtol=1e-4)
+
+
+def test_default_is_exact(make_scene: Any, tmp_path: Path) -> None:
+    """No pair_eval in the scene: the exact law (the resolved scene says so), its outputs
+    identical to pair_eval = 'exact' given explicitly."""
+    base = {"protocol.t_relax": 2.0, "protocol.h0": 65.0, "protocol.hf": 60.0,
+            "output.piston_every": 10, "integration.neighbour": "verlet",
+            "integration.r_cut": 4.13, "integration.skin": 0.5}
+    a = make_scene("bench_compression", base, name="a.nml")
+    text = a.read_text().replace("pair_eval = 'exact'", "")
+    a.write_text(text)
+    b = make_scene("bench_compression", {**base, "integration.pair_eval": "exact"}, name="b.nml")
+    assert _run(a, tmp_path / "a").returncode == 0
+    assert _run(b, tmp_path / "b").returncode == 0
+    assert "pair_eval = 'exact'" in (tmp_path / "a" / "scene.nml").read_text()
+    assert (tmp_path / "a" / "piston.dat").read_bytes() == (tmp_path / "b" / "piston.dat").read_bytes()
+
+
+def test_lj_table_run(tmp_path: Path) -> None:
+    from pyorch.scene import Scene
+    outs = {}
+    for ev in ("exact", "table"):
+        sc = Scene.read(ROOT / "runs/lj_demo.nml").with_overrides(
+            {"steric.pair_eval": ev, "integration.steps": 400, "output.frame_every": 100,
+             "output.energy_every": 100})
+        path = sc.write(tmp_path / f"{ev}.nml")
+        r = _run(path, tmp_path / ev)
+        assert r.returncode == 0, r.stderr
+        outs[ev] = json.loads((tmp_path / ev / "run.json").read_text())
+    assert outs["table"]["pair_eval"] == "table"
+    assert outs["table"]["pair_max_rel_error"] <= 1e-6
+    lo, hi = outs["table"]["pair_table"]["r_range"]
+    assert (lo, hi) == pytest.approx((Scene.read(tmp_path / "table.nml").get("steric", "r_m"),
+                                      Scene.read(tmp_path / "table.nml").get("steric", "r_cut")))
+    e = {ev: np.loadtxt(tmp_path / ev / "energy.dat", skiprows=2) for ev in outs}
+    assert not np.array_equal(e["exact"][:, 3], e["table"][:, 3])
+    assert np.allclose(e["exact"][:, 3], e["table"][:, 3], rtol=1e-4, atol=1e-6)
