@@ -35,3 +35,21 @@ def test_a_start_grid_closer_than_min_distance_is_refused_at_check_naming_the_pl
     p = partsim(str(ok.write(tmp_path / "ok.nml")), "--out", str(tmp_path / "ok"), "--quiet",
                 "--stop-at", "50")
     assert p.returncode == 0, p.stderr
+
+
+def test_a_rods_scene_larger_than_the_memory_is_refused_at_check(tmp_path):
+    """n = 2e8 samples (~19 GB) under a 4 GB address-space limit: refused before anything is
+    allocated, naming n, the estimate and the limit (the fuzzer found check building 2e8 samples)."""
+    import resource
+
+    path = tmp_path / "r.nml"
+    path.write_text("&scene kind = 'rods' /\n&rods n = 200000000 /\n")
+
+    def limit() -> None:
+        resource.setrlimit(resource.RLIMIT_AS, (4 * 2**30, 4 * 2**30))
+
+    p = subprocess.run([str(engine_executable()), str(path), "--check"], capture_output=True,
+                       text=True, timeout=60, preexec_fn=limit)
+    assert p.returncode == 2, p.stderr
+    assert f"{path}: &rods n = 200000000: the run needs about 19" in p.stderr
+    assert "(ulimit -v): reduce n" in p.stderr

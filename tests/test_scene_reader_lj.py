@@ -25,7 +25,7 @@ KEYS = {
     "box": ["l"],
     "particles": ["n", "placement", "min_distance", "velocities", "speed", "temperature",
                   "seed", "type_id"],
-    "steric": ["law", "p", "u0", "r_m", "r_cut", "neighbour", "skin"],
+    "steric": ["law", "p", "u0", "r_m", "r_cut", "neighbour", "skin", "pair_eval", "pair_table_error"],
     "physics": ["alpha"],
     "field": ["type", "f0x", "f0y", "gxx", "gxy", "gyx", "gyy", "x0", "y0", "amplitude", "ex",
               "ey", "kx", "ky", "omega", "phase", "power", "r0", "r_core", "modulation",

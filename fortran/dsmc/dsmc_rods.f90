@@ -23,6 +23,7 @@ module dsmc_rods
   use, intrinsic :: iso_fortran_env, only: int8
   use scene_input, only: kind_len, int_str, real_str
   use schema, only: schema_t, max_steps_all
+  use memory, only: check_memory_need
   use dsmc_collisions, only: collision_t, pair_count, draw_pairs, collide_pairs, stream_key, &
        uniforms, numbers_per_pair
   use dsmc_mean_field, only: field_t, transport, interaction_energy
@@ -204,6 +205,11 @@ contains
       call set_error(st, exit_bad_input, trim(path)//': &rods n = '//int_str(self%n)// &
            ': allowed integers in [2, 100000] with &mean_field onsager_force = ''exact'' '// &
            '(O(N^2) per step; ''fourier'' or ''histogram'' for more samples)')
+    else
+      ! peak while the initial law is drawn: v, theta, omega, three work arrays and the
+      ! normals' two, then the permutation and the pair draw: about 100 B a sample
+      call check_memory_need(100.0_dp*real(self%n, dp) + 16.0_dp*2.0_dp**20, trim(path)// &
+           ': &rods n = '//int_str(self%n), 'reduce n', st)
     end if
   end subroutine validate
 
