@@ -105,6 +105,15 @@ def key_specs(kind: str = "magnet_bed") -> dict[str, dict[str, dict[str, Any]]]:
     return {g["name"]: {k["name"]: k for k in g["keys"]} for g in schema(kind)["groups"]}
 
 
+def parameter_unit(kind: str, dotted: str) -> str:
+    """The declared unit of ``group.key`` or ``group.key(i)`` of a kind ('' when it has none
+    or is not a key): what a sweep's parameter column carries in its name."""
+    group, _, key = dotted.lower().partition(".")
+    m = _KEY.match(key)
+    spec = key_specs(kind).get(group, {}).get(m.group(1) if m else key, {})
+    return str(spec.get("unit", ""))
+
+
 def default_keys(kind: str = "magnet_bed") -> dict[str, dict[str, Any]]:
     """group -> key -> default value of a scene kind, as the engine declares them."""
     return {g: {k: spec["default"] for k, spec in keys.items()}

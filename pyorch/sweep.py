@@ -525,13 +525,16 @@ class Sweep:
 
     def result_units(self) -> dict[str, str]:
         """Units of the results' columns: wall_time_s [s] and, with the kind's default metrics,
-        the kind's ``METRIC_UNITS`` (as in its .dat files). The parameters' units are the
-        scene's (scene.nml of each point)."""
-        units = dict(TASK_UNITS)
+        the kind's ``METRIC_UNITS`` (as in its .dat files); the parameters' (``group.key``
+        columns) from the kind's declared keys (:func:`pyorch.scene.parameter_unit`)."""
+        from pyorch.scene import parameter_unit
+
+        kind = str(self.scene.get("scene", "kind", "magnet_bed"))
+        units = {k: parameter_unit(kind, k) for k in self.label_keys()}
+        units.update(TASK_UNITS)
         if self.metrics is None:
             from pyorch import kinds
 
-            kind = str(self.scene.get("scene", "kind", "magnet_bed"))
             units.update(getattr(kinds.plugin(kind), "METRIC_UNITS", {}))
         return units
 

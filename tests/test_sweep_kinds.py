@@ -146,3 +146,19 @@ def test_results_csv_names_its_units(tmp_path: Path) -> None:
     assert back.attrs["units"]["T"] == "E" and back.attrs["units"]["status"] == ""
     np.testing.assert_array_equal(back["T"], df["T"])
     assert (back["T"] > 0).all() and list(back["status"]) == ["completed"] * 2
+
+
+def test_parameter_and_metric_columns_carry_the_declared_units(tmp_path: Path) -> None:
+    """The sweep's parameter columns take their units from the kind's declared keys (the
+    engine's schema), the oscillator's metrics from its METRIC_UNITS: results.csv reads
+    ``oscillator.omega[rad/tau]`` and ``E_final[L^2/tau^2]``; a unitless key keeps its name."""
+    spec = _spec(tmp_path, RUNS / "oscillator.nml",
+                 '[set]\n"oscillator.n" = 2\n"oscillator.t_end" = 0.1\n'
+                 '[grid]\n"oscillator.omega" = [3.0, 6.0]\n"oscillator.seed" = [1]\n')
+    assert main(["sweep", str(spec), "--workers", "1", "--no-progress"]) == 0
+    header = (tmp_path / "out" / "results.csv").read_text().splitlines()[0].split(",")
+    assert "oscillator.omega[rad/tau]" in header and "E_final[L^2/tau^2]" in header
+    assert "oscillator.seed" in header and "wall_time_s[s]" in header
+    res = read_results(tmp_path / "out")
+    assert res.attrs["units"]["oscillator.omega"] == "rad/tau"
+    assert sorted(res["oscillator.omega"]) == [3.0, 6.0]

@@ -367,6 +367,10 @@ def _scene_value(text: str, key: str) -> float:
 METRIC_KEYS = ("members", "D_rg", "D_rg_range_lo", "D_rg_range_hi", "D_mass_radius",
                "D_mass_radius_range_lo", "D_mass_radius_range_hi", "free_final", "free_sticky_final", "E_kin_final", "t_final")
 
+#: units of :data:`METRIC_KEYS` (counts and dimensions: 1)
+METRIC_UNITS = {"members": "1", "D_rg": "1", "D_rg_range_lo": "1", "D_rg_range_hi": "1",
+                "D_mass_radius": "1", "D_mass_radius_range_lo": "1", "D_mass_radius_range_hi": "1",
+                "free_final": "1", "free_sticky_final": "1", "E_kin_final": "E", "t_final": "tau"}
 
 def default_metrics(run: object) -> dict[str, float]:
     """Sweep results of one run (a :class:`pyorch.run.Run` or a run directory): members,

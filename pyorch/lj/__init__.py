@@ -391,6 +391,9 @@ def write_tables(run_dir: str | Path, out: str | Path | None = None) -> list[Pat
 METRIC_KEYS = ("e_total_initial", "e_total_final", "e_kin_final", "wall_hits", "r_min",
                "kT_final", "ks_maxwell_final")
 
+#: units of :data:`METRIC_KEYS`
+METRIC_UNITS = {"e_total_initial": "m*g*a", "e_total_final": "m*g*a", "e_kin_final": "m*g*a",
+                "wall_hits": "1", "r_min": "a", "kT_final": "m*g*a", "ks_maxwell_final": "1"}
 
 def default_metrics(run: object) -> dict[str, float]:
     """Sweep results of one run (a :class:`pyorch.run.Run` or a run directory): total energy

@@ -104,6 +104,8 @@ def write_tables(run_dir: str | Path, out: str | Path | None = None) -> list[Pat
 #: columns of :func:`default_metrics`
 METRIC_KEYS = ("E_final", "E_rel_change")
 
+#: units of :data:`METRIC_KEYS`
+METRIC_UNITS = {"E_final": "L^2/tau^2", "E_rel_change": "1"}
 
 def default_metrics(run: object) -> dict[str, float]:
     """Sweep results of one run (a :class:`pyorch.run.Run`): final total energy
