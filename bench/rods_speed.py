@@ -146,6 +146,11 @@ def wall_per_step(sc_full: Scene, sc_one: Scene, steps: int, threads: int, tmp: 
     return (full - one) / (steps - 1)
 
 
+#: steps of the thread runs: the 1-step run's set-up (~0.3 s at N = 1e6) must be small beside
+#: them (41 steps of the faster kernel of RESULTS 15.5 read a negative time per step)
+STEPS = 401
+
+
 def threads_table(tmp: Path) -> pd.DataFrame:
     """1 vs 2 threads at N = 1e6 (wall time: threads share the machine with other jobs)."""
     rows = []
@@ -155,10 +160,10 @@ def threads_table(tmp: Path) -> pd.DataFrame:
              {"mean_field.onsager_force": "histogram"})]:
         base = Scene.read(ROOT / "runs" / scene)
         over = {**QUIET, "rods.n": 1000000, **over}
-        full = base.with_overrides({**over, "rods.t_end": 41 * 0.05})
+        full = base.with_overrides({**over, "rods.t_end": STEPS * 0.05})
         one = base.with_overrides({**over, "rods.t_end": 0.05})
         for th in (1, 2):
-            w = wall_per_step(full, one, 41, th, tmp, f"th{th}{scene}")
+            w = wall_per_step(full, one, STEPS, th, tmp, f"th{th}{scene}")
             rows.append({"scene": label, "threads": th, "wall_per_step_s": w,
                          "particle_steps_per_s": 1e6 / w,
                          "load_average_1min": common.load_average()[0]})
