@@ -222,3 +222,10 @@ def test_set_checks_types_and_lists_from_the_declaration():
         parse_override("particles.species_diameter=" + ",".join(["1.0"] * 9))
     with pytest.raises(SceneError, match="unknown group &particles for kind 'oscillator'"):
         parse_override("particles.n=3", "oscillator")
+
+
+def test_pyorch_scene_describe_json_is_the_engines_schema():
+    p = subprocess.run([str(Path(engine_executable()).parent / "pyorch"), "scene", "describe",
+                        "rods", "--json"], capture_output=True, text=True, timeout=60)
+    assert p.returncode == 0, p.stderr
+    assert json.loads(p.stdout) == schema("rods")

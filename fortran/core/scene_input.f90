@@ -10,7 +10,7 @@ module scene_input
   implicit none
   private
 
-  public :: kind_len, read_kind, read_text, max_scene_bytes, printable, lower_case, &
+  public :: kind_len, read_kind, read_text, printable, lower_case, &
        check_real, check_int, choice_index, quoted, real_str, int_str
 
   integer, parameter :: kind_len = 32

@@ -77,7 +77,6 @@ module schema
     type(key_t), allocatable :: keys(:)
     type(group_t), allocatable :: groups(:)
     integer :: nk = 0, ng = 0
-    character(len=:), allocatable :: path      !< file of the last read (messages)
   contains
     procedure :: init
     procedure :: group => add_group
@@ -88,7 +87,6 @@ module schema
     procedure :: text => schema_text
     procedure :: describe => schema_describe
     procedure :: json => schema_json
-    procedure :: given => key_given
     procedure :: line_of
     procedure :: group_names
   end type schema_t
@@ -268,16 +266,6 @@ contains
     end do
     g = 0
   end function find_group
-
-  !> Was group%key (any element) assigned in the file read?
-  logical function key_given(s, group, name)
-    class(schema_t), intent(in) :: s
-    character(len=*), intent(in) :: group, name
-    integer :: k
-    k = find_key(s, group, name)
-    key_given = .false.
-    if (k > 0) key_given = any(s%keys(k)%given)
-  end function key_given
 
   !> Line of group%key's assignment in the file read (0: not given).
   integer function line_of(s, group, name)
@@ -618,7 +606,6 @@ contains
     type(status_t), intent(inout) :: st
     character(len=:), allocatable :: text
     integer :: pos, line, g
-    s%path = path
     call read_text(path, text, st)
     if (st%code /= 0) return
     pos = 1
