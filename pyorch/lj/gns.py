@@ -357,7 +357,8 @@ class DatasetSpec:
     @classmethod
     def from_toml(cls, path: str | Path) -> "DatasetSpec":
         """Read a dataset spec (module docstring); SceneError naming the key otherwise."""
-        from pyorch.sweep import Sweep, _flatten, read_spec
+        from pyorch.sweep import Sweep, read_spec
+        from pyorch.sweep.spec import _flatten
 
         path = Path(path)
         spec, text = read_spec(path, _SPEC_KEYS, "dataset spec")
