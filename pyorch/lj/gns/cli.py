@@ -71,4 +71,4 @@ def cmd_dataset(args: argparse.Namespace) -> int:
           f"noise_std {prov['noise']['suggested_noise_std']:.2g}")
     for f in prov["failed"]:
         print(f"  {f['name']}: {f['status']}: {f['message']}", file=sys.stderr)
-
+    return 3 if prov["failed"] else 0
