@@ -1,6 +1,9 @@
 """``python -m pyorch.bed.damper RUN_DIR``: the thesis' fit (eq. 5.12) of a damper run's fall."""
 from __future__ import annotations
 
+import argparse
+import math
+import sys
 from collections.abc import Sequence
 from typing import Any
 
@@ -10,24 +13,52 @@ from pyorch.bed import readers as bed_readers
 from pyorch.bed.damper.identify import identify_fall, recorded_motion
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m pyorch.bed.damper RUN_DIR``: the thesis' fit (eq. 5.12) of a damper run's fall."""
-    import argparse
+def _t_scale(text: str) -> float | str:
+    """``--t-scale``: ``auto``, ``gravity`` or a finite number > 0 [T]."""
+    if text in ("auto", "gravity"):
+        return text
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"{text!r}: expected auto, gravity or a number > 0 [T]")
+    return value
 
+
+def _every(text: str) -> int:
+    """``--every``: a whole number >= 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected a whole number >= 1")
+    return value
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m pyorch.bed.damper RUN_DIR``: the thesis' fit (eq. 5.12) of a damper run's fall.
+    Exit 0, or 2 with a message (no exception) when the options, piston.dat or its record are
+    unusable."""
     ap = argparse.ArgumentParser(prog="python -m pyorch.bed.damper", description=main.__doc__)
     ap.add_argument("run_dir")
-    ap.add_argument("--t-scale", default="auto",
+    ap.add_argument("--t-scale", type=_t_scale, default="auto",
                     help="time unit of the normalised record: auto (1/omega_d), gravity "
-                         "(sqrt(scale/g)) or a number [T]")
-    ap.add_argument("--every", type=int, default=10, help="use every k-th piston sample")
+                         "(sqrt(scale/g)) or a number > 0 [T]")
+    ap.add_argument("--every", type=_every, default=10, help="use every k-th piston sample (>= 1)")
     ap.add_argument("--csv", help="write the table here")
     args = ap.parse_args(argv)
 
-    pis = bed_readers.piston(args.run_dir)
-    experiment, rec, _ = recorded_motion(pis)
-    rec = rec.iloc[:: max(1, args.every)]
-    ts: Any = args.t_scale if args.t_scale in ("auto", "gravity") else float(args.t_scale)
-    nr, table = identify_fall(rec["t"].to_numpy(float), rec["H"].to_numpy(float), t_scale=ts)
+    try:
+        pis = bed_readers.piston(args.run_dir)
+        experiment, rec, _ = recorded_motion(pis)
+        rec = rec.iloc[:: args.every]
+        ts: Any = args.t_scale
+        nr, table = identify_fall(rec["t"].to_numpy(float), rec["H"].to_numpy(float), t_scale=ts)
+    except (OSError, ValueError) as exc:
+        print(f"{ap.prog}: error: {args.run_dir}: {exc}", file=sys.stderr)
+        return 2
     print(f"{experiment} record of {args.run_dir}: {len(rec)} samples, t = {nr.t0:g} .. "
           f"{float(rec['t'].iloc[-1]):g} T")
     print(f"normalisation: z = (H - {nr.offset:.4g} D1) / {nr.scale:.4g} D1 (H0 = {nr.H0:.4g} -> 1, "
