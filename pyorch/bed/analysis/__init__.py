@@ -20,7 +20,8 @@ Pair structure (:mod:`~pyorch.bed.analysis.rdf`)
 Piston (eq. 4.29; the maximum compression of a piston record; :mod:`~pyorch.bed.analysis.piston`)
     :func:`min_distance_to_piston`, :func:`compression_rows`, :func:`max_compression_step`
 Forces (eq. 4.35, Knuth's rule; :mod:`~pyorch.bed.analysis.forces`)
-    :func:`force_magnitudes` (:mod:`pyorch.structure`), :func:`force_histogram`, :func:`force_fluctuations`
+    :func:`force_magnitudes` (:mod:`pyorch.structure`), :func:`force_histogram`,
+    :func:`force_fluctuations`
 Fits (Table 4.5; :mod:`~pyorch.bed.analysis.fits`)
     :func:`fit_biexponential`, :func:`fit_linear`, :func:`pearson`
 Per-frame summaries (:mod:`~pyorch.bed.analysis.frames`)

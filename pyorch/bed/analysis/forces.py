@@ -2,7 +2,9 @@
 fluctuations of eq. (4.35).
 
 :func:`knuth_log_posterior`, :func:`knuth_bin_edges`, :func:`force_histogram`,
-:func:`force_fluctuations`. Units: lengths in big-particle diameters ``D1``, forces in big-particle weights ``m1 g`` (the engine's dimensionless form, thesis ch. 4); unit-agnostic otherwise.
+:func:`force_fluctuations`. Units: lengths in big-particle diameters ``D1``, forces in
+big-particle weights ``m1 g`` (the engine's dimensionless form, thesis ch. 4); unit-agnostic
+otherwise.
 """
 from __future__ import annotations
 
