@@ -58,7 +58,7 @@ import pandas as pd
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import common  # noqa: E402
 
-from pyorch import analysis as an  # noqa: E402
+from pyorch.bed import analysis as an  # noqa: E402
 
 BASELINE = "fe2120f"  # last commit with the per-cell loop and the all-particle edge correction
 

@@ -9,6 +9,7 @@ from scipy.spatial import Voronoi
 from scipy.special import gammaln
 
 from pyorch.bed import analysis as an
+from pyorch.bed.analysis import rdf as an_rdf
 
 SQRT3 = np.sqrt(3.0)
 
@@ -245,7 +246,8 @@ def test_rdf_strips_and_edge_correction_equal_the_direct_computation(monkeypatch
     rng = np.random.default_rng(8)
     p = rng.random((4000, 2)) * [30.0, 20.0]
     whole = an.radial_distribution(p, 30.0, 20.0, r_max=4.0, dr=0.1)
-    monkeypatch.setattr(an, "_PAIR_CHUNK", 2000)  # ~ 50 strips
+    monkeypatch.setattr(an_rdf, "_PAIR_CHUNK", 2000)  # ~ 50 strips
+    assert len(list(an_rdf._pair_distances(p, 4.0, 600.0))) > 10  # the strips are taken
     strips = an.radial_distribution(p, 30.0, 20.0, r_max=4.0, dr=0.1)
     np.testing.assert_array_equal(strips["pairs"], whole["pairs"])
     d = np.sqrt(((p[:, None, :] - p[None, :, :]) ** 2).sum(axis=2))

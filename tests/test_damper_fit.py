@@ -374,3 +374,55 @@ def test_identify_fall_error_inflation_flags_model_error() -> None:
     _, table = dmp.identify_fall(t, H, t_scale=tau, H_eq=offset - scale, H0=offset + scale)
     assert table.loc["vdp, z(0)=1 z'(0)=0 fixed", "err_inflation"] < 1.3
     assert table.loc["linear", "err_inflation"] > 3.0
+
+
+def test_the_command_line_fits_a_run_directory(tmp_path) -> None:
+    """``python -m pyorch.bed.damper RUN_DIR`` (the package's __main__): a fall from rest written
+    as piston.dat is normalised and fitted; the linear row of the table recovers the damping
+    ratio, the table lands in --csv, exit 0; a directory without piston.dat is an error."""
+    import subprocess
+
+    t = np.arange(0.0, 200.0, 0.1)
+    H = _damped(t, 0.05, 0.26, 52.3, 10.0)
+    with open(tmp_path / "piston.dat", "w") as fh:
+        fh.write("# piston.dat: test\n# step t[T] H[D1] F_piston[m1*g] phi[1] phase\n")
+        for k, (tk, hk) in enumerate(zip(t, H)):
+            fh.write(f"{10 * k} {tk:.10e} {hk:.10e} 50.0 0.5 6\n")
+    cmd = [sys.executable, "-m", "pyorch.bed.damper", str(tmp_path), "--every", "2",
+           "--csv", str(tmp_path / "fit.csv")]
+    res = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0, res.stderr
+    assert f"fall record of {tmp_path}: 1000 samples" in res.stdout
+    table = pd.read_csv(tmp_path / "fit.csv", index_col="model")
+    assert table.loc["linear", "zeta"] == pytest.approx(0.05, rel=1e-3)
+    assert "thesis Fig. 5.12 (not fitted)" in table.index
+
+
+
+@pytest.mark.parametrize("args, says", [
+    (["EMPTY"], "piston.dat"),                                  # no record: the file it wanted
+    (["RUN", "--every", "0"], "--every: '0': expected a whole number >= 1"),
+    (["RUN", "--t-scale", "-1"], "--t-scale: '-1': expected auto, gravity or a number > 0 [T]"),
+    (["RUN", "--t-scale", "nan"], "--t-scale: 'nan': expected auto, gravity or a number > 0"),
+    (["HELD"], "no fall or free phase in the piston record"),  # a run that never fell
+])
+def test_the_command_line_refuses_with_a_message(tmp_path, args, says) -> None:
+    """Bad options or records end with exit 2 and one message, never a traceback (a missing
+    piston.dat, a record without a fall and --t-scale -1 or nan raised; --every 0 was taken as 1)."""
+    import subprocess
+
+    run, held, empty = tmp_path / "run", tmp_path / "held", tmp_path / "empty"
+    for d, phase in ((run, 6), (held, 1)):
+        d.mkdir()
+        t = np.arange(0.0, 50.0, 0.1)
+        with open(d / "piston.dat", "w") as fh:
+            fh.write("# piston.dat: test\n# step t[T] H[D1] F_piston[m1*g] phi[1] phase\n")
+            for k, (tk, hk) in enumerate(zip(t, _damped(t, 0.05, 0.26, 52.3, 10.0))):
+                fh.write(f"{10 * k} {tk:.10e} {hk:.10e} 50.0 0.5 {phase}\n")
+    empty.mkdir()
+    where = {"RUN": run, "HELD": held, "EMPTY": empty}
+    argv = [str(where.get(a, a)) for a in args]
+    res = subprocess.run([sys.executable, "-m", "pyorch.bed.damper", *argv],
+                         capture_output=True, text=True, timeout=300)
+    assert res.returncode == 2, (res.stdout, res.stderr)
+    assert says in res.stderr and "Traceback" not in res.stderr, res.stderr

@@ -18,6 +18,7 @@ import pytest
 
 from pyorch import RunError, SceneError
 from pyorch.lj import gns
+from pyorch.lj.gns import build as gns_build
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
@@ -402,7 +403,7 @@ def _break(out: Path, split: str, edit) -> None:
         items = {k: (f[k][0], f[k][1]) for k in f.files}
     key = sorted(items)[0]
     items[key] = edit(*items[key])
-    gns._write_npz(path, items)
+    gns_build._write_npz(path, items)
 
 
 @pytest.mark.parametrize("split, edit, message", [

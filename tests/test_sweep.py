@@ -24,6 +24,7 @@ from distributed import Client, LocalCluster
 from pyorch import SceneError
 from pyorch import run as prun
 from pyorch import sweep as sw
+from pyorch.sweep import spec as sw_spec
 from pyorch.bed import METRIC_KEYS
 from pyorch.run import Run, engine_executable
 from pyorch.scene import Scene, validate
@@ -146,7 +147,7 @@ def test_toml_spec(tmp_path):
 @pytest.mark.parametrize("name", ["seeds_10", "piston_speeds", "system_size", "mixing_aspect"])
 def test_example_specs_validate(name):
     spec = SWEEPS / f"{name}.toml"
-    base = spec.parent / sw.tomllib.loads(spec.read_text())["base"]
+    base = spec.parent / sw_spec.tomllib.loads(spec.read_text())["base"]
     if not base.is_file():
         pytest.skip(f"{base} does not exist yet")
     s = sw.Sweep.from_toml(spec)

@@ -48,7 +48,7 @@ def test_slurm_without_jobqueue_config_says_what_to_configure(
 def test_slurm_setting_refused_by_dask_jobqueue_is_one_line() -> None:
     """A setting dask-jobqueue cannot use (a memory it cannot parse): its reason in one line
     with where the config comes from, not a traceback."""
-    from pyorch.sweep import _make_cluster
+    from pyorch.sweep.backends import _make_cluster
 
     with dask.config.set({"jobqueue.slurm.cores": 1, "jobqueue.slurm.memory": None}):
         with pytest.raises(SceneError, match=r"jobqueue.slurm.memory \(a job's cores"):
