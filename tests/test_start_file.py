@@ -320,6 +320,8 @@ def test_the_engine_runs_a_hand_written_start_file(tmp_path):
     ("6 2 0 0.5 1", "6 2 0 2*0.5", r"line 10: expected 5 values"),
     ("6 2 0 0.5 1", "6 2 0 0.5 3", r"line 10: species 3: allowed \[1, 2\]"),
     ("6 2 0 0.5 1", "6 2 0 0.5 1.0", r"line 10: species '1.0': must be an integer"),
+    ("6 2 0 0.5 1", "6 2 0 1e300 1", r"line 10: speed 1.0e\+300 D1/T: allowed \[0, 1000.0\] "
+                                     r"D1/T \(the range of &particles speed_init\)"),
     ("6 2 0 0.5 1", "2.3 2.1 0 0.5 1", r"lines 8 and 10: particles 1 and 3 are 0.316\d* D1 apart, "
                                        r"closer than &physics min_distance = 0.5 D1"),
     ("6 2 0 0.5 1", "6 15.9 0 0.5 1", r"line 10: particle 3 at \(6.0, 15.9\) D1 is outside the cell "

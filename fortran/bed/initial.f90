@@ -211,7 +211,8 @@ contains
     real(dp) :: wmin
     where = trim(path)//': &particles start_file = '''//trim(sc%start_file)//''''
     call start_read(where, trim(sc%start_file), 'magnet_bed', 'D1', 'D1/T', sc%n, &
-         [m%width, m%height], '&cell width, height', sc%n_species, sf, st)
+         [m%width, m%height], '&cell width, height', sc%n_species, 1.0e3_dp, &
+         '&particles speed_init', sf, st)
     if (st%code /= 0) return
     if (sc%n_species > 1 .and. .not. sf%has_species) then
       call set_error(st, exit_bad_input, where//': no species column, and the scene has '// &

@@ -461,7 +461,7 @@ contains
     character(len=:), allocatable :: where
     where = trim(path)//': &particles start_file = '''//trim(self%start_file)//''''
     call start_read(where, trim(self%start_file), 'lj_box', 'a', 'a/T', int(self%n), &
-         [self%l, self%l], '&box l', 0, self%start, st)
+         [self%l, self%l], '&box l', 0, 1.0e6_dp, '&particles speed', self%start, st)
     if (st%code /= 0) return
     call start_check_region(self%start, [self%lo, self%lo], [self%hi, self%hi], 'a', &
          'the box the centres reach (&box l, &walls contact = '''//trim(self%contact)// &

@@ -55,13 +55,14 @@ contains
 
   !> Read and check start file `path` against the scene: kind, units (length, speed),
   !> n, box (Lx, Ly) [length unit], species 1..n_species (n_species = 0: no species
-  !> column allowed). `where` begins every message (e.g. "SCENE: &particles start_file =
-  !> 'PATH'"); box_keys names the scene's keys of the box. Nothing but sf is changed.
+  !> column allowed), speeds |v| <= vmax [speed unit] (vkey: the scene key whose range that
+  !> is). `where` begins every message (e.g. "SCENE: &particles start_file = 'PATH'");
+  !> box_keys names the scene's keys of the box. Nothing but sf is changed.
   subroutine start_read(where, path, kind, length_unit, speed_unit, n, box, box_keys, &
-       n_species, sf, st)
-    character(len=*), intent(in) :: where, path, kind, length_unit, speed_unit, box_keys
+       n_species, vmax, vkey, sf, st)
+    character(len=*), intent(in) :: where, path, kind, length_unit, speed_unit, box_keys, vkey
     integer, intent(in) :: n, n_species
-    real(dp), intent(in) :: box(2)
+    real(dp), intent(in) :: box(2), vmax
     type(start_t), intent(out) :: sf
     type(status_t), intent(inout) :: st
     integer :: u, ios, ln, c, nv, stage, got, k, iv(1)
@@ -241,6 +242,9 @@ contains
         case (c_vy); sf%vy(i) = r
         end select
       end do
+      if (hypot(sf%vx(i), sf%vy(i)) > vmax) call fail(at()//'speed '// &
+           real_str(hypot(sf%vx(i), sf%vy(i)))//' '//speed_unit//': allowed [0, '// &
+           real_str(vmax)//'] '//speed_unit//' (the range of '//vkey//')')
     end subroutine read_row
 
     function column_list() result(s)
