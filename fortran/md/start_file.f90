@@ -205,41 +205,48 @@ contains
       sf%has_species = any(cols(1:ncol) == c_species)
     end subroutine read_columns
 
-    !> Row i (particle i): every value checked before it is stored.
+    !> Row i (particle i): every word checked (a plain number; species an integer in
+    !> range), then the row read in one statement, every value finite before it is stored.
     subroutine read_row(i)
       integer, intent(in) :: i
-      integer :: j
-      real(dp) :: r
-      logical :: good
+      integer :: j, ios, m
+      real(dp) :: vals(5)
       sf%line(i) = ln
       do j = 1, ncol
         w = word(line, j)
         if (cols(j) == c_species) then
-          call ints(w, iv, good)
-          if (.not. good) then
+          m = 1
+          if (index('+-', w(1:1)) > 0) m = 2
+          if (len(w) < m .or. len(w) - m >= 9 .or. verify(w(m:), '0123456789') /= 0) then
             call fail(at()//'species '''//printable(w)//''': must be an integer')
             return
           end if
-          if (iv(1) < 1 .or. iv(1) > n_species) then
-            call fail(at()//'species '//int_str(int(iv(1), i8))//': allowed [1, '// &
-                 int_str(int(n_species, i8))//'] (&particles n_species = '// &
-                 int_str(int(n_species, i8))//')')
-            return
-          end if
-          sf%species(i) = iv(1)
-          cycle
-        end if
-        call real_word(w, r, good)
-        if (.not. good) then
+        else if (.not. real_literal(w)) then
           call fail(at()//trim(col_names(cols(j)))//' = '''//printable(w)//''': must be a '// &
                'finite number')
           return
         end if
+      end do
+      read(line, *, iostat=ios) vals(1:ncol)
+      do j = 1, ncol
+        if (ios /= 0 .or. .not. abs(vals(j)) <= huge(1.0_dp)) then
+          call fail(at()//trim(col_names(cols(j)))//' = '''//printable(word(line, j))// &
+               ''': must be a finite number')
+          return
+        end if
         select case (cols(j))
-        case (c_x); sf%x(i) = r
-        case (c_y); sf%y(i) = r
-        case (c_vx); sf%vx(i) = r
-        case (c_vy); sf%vy(i) = r
+        case (c_x); sf%x(i) = vals(j)
+        case (c_y); sf%y(i) = vals(j)
+        case (c_vx); sf%vx(i) = vals(j)
+        case (c_vy); sf%vy(i) = vals(j)
+        case (c_species)
+          sf%species(i) = nint(vals(j))
+          if (sf%species(i) < 1 .or. sf%species(i) > n_species) then
+            call fail(at()//'species '//int_str(int(sf%species(i), i8))//': allowed [1, '// &
+                 int_str(int(n_species, i8))//'] (&particles n_species = '// &
+                 int_str(int(n_species, i8))//')')
+            return
+          end if
         end select
       end do
       if (hypot(sf%vx(i), sf%vy(i)) > vmax) call fail(at()//'speed '// &
