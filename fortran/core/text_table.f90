@@ -9,9 +9,30 @@ module text_table
   implicit none
   private
 
-  public :: read_line, count_values, word, ints, reals, real_literal
+  public :: read_line, next_values, count_values, word, ints, reals, real_literal
 
 contains
+
+  !> The next line of unit u that holds values: '#' starts a comment, lines of blanks are
+  !> skipped; ln counts the lines read (the file's line number of the one returned), nv its
+  !> values; ios /= 0 at the end of the file.
+  subroutine next_values(u, line, ln, nv, ios)
+    integer, intent(in) :: u
+    character(len=:), allocatable, intent(out) :: line
+    integer, intent(inout) :: ln
+    integer, intent(out) :: nv, ios
+    integer :: c
+    nv = 0
+    do
+      call read_line(u, line, ios)
+      if (ios /= 0) return
+      ln = ln + 1
+      c = index(line, '#')
+      if (c > 0) line = line(:c - 1)
+      nv = count_values(line)
+      if (nv > 0) return
+    end do
+  end subroutine next_values
 
   !> One whole line of unit u, however long (ios /= 0 at the end of the file).
   subroutine read_line(u, line, ios)

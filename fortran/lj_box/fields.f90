@@ -20,7 +20,7 @@ module fields
   use kinds, only: dp, i8
   use errors, only: status_t, set_error, exit_bad_input, msg_len
   use scene_input, only: int_str, printable
-  use text_table, only: read_line, count_values, ints, reals
+  use text_table, only: next_values, ints, reals
   implicit none
   private
 
@@ -251,7 +251,7 @@ contains
     type(field_t), intent(inout) :: f
     character(len=*), intent(in) :: path
     type(status_t), intent(inout) :: st
-    integer :: u, ios, line_no, got, need, i, j, k, c, stage, nv
+    integer :: u, ios, line_no, got, need, i, j, k, stage, nv
     integer :: iv(3)
     real(dp) :: v(4)
     character(len=:), allocatable :: line
@@ -265,13 +265,8 @@ contains
     stage = 0; got = 0; need = 0; line_no = 0; nv = 0
     i = 1; j = 1; k = 1
     do
-      call read_line(u, line, ios)
+      call next_values(u, line, line_no, nv, ios)
       if (ios /= 0) exit
-      line_no = line_no + 1
-      c = index(line, '#')
-      if (c > 0) line = line(:c - 1)
-      nv = count_values(line)
-      if (nv == 0) cycle
       stage = stage + 1
       select case (stage)
       case (1)

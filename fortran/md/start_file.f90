@@ -24,7 +24,7 @@ module start_file
   use kinds, only: dp, i8
   use errors, only: status_t, set_error, exit_bad_input, exit_io, msg_len
   use scene_input, only: int_str, real_str, printable
-  use text_table, only: read_line, count_values, word, ints, real_literal
+  use text_table, only: next_values, word, ints, real_literal
   use ckpt, only: file_crc64
   use run_meta, only: json_escape
   implicit none
@@ -65,7 +65,7 @@ contains
     real(dp), intent(in) :: box(2), vmax
     type(start_t), intent(out) :: sf
     type(status_t), intent(inout) :: st
-    integer :: u, ios, ln, c, nv, stage, got, k, iv(1)
+    integer :: u, ios, ln, nv, stage, got, k, iv(1)
     integer :: cols(5), ncol
     real(dp) :: v(2)
     character(len=:), allocatable :: line, w
@@ -81,13 +81,8 @@ contains
     end if
     stage = 0; got = 0; ln = 0; ncol = 0; cols = 0
     do
-      call read_line(u, line, ios)
+      call next_values(u, line, ln, nv, ios)
       if (ios /= 0) exit
-      ln = ln + 1
-      c = index(line, '#')
-      if (c > 0) line = line(:c - 1)
-      nv = count_values(line)
-      if (nv == 0) cycle
       stage = stage + 1
       select case (stage)
       case (1)
