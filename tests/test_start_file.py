@@ -426,3 +426,11 @@ def test_the_cli_commands(bed_a, tmp_path):
     assert main(["run", str(nml), "--start-from", str(bed_a / "frames.gsd"), "--out",
                  str(tmp_path / "B"), "--quiet", "--no-plots"]) == 0
     assert (tmp_path / "B" / "start.txt").is_file()
+
+
+def test_a_kind_without_start_files_is_named(tmp_path):
+    from pyorch.start import start_spec
+
+    with pytest.raises(SceneError, match=r"kind 'dla' cannot start from a frame \(kinds that "
+                                         r"can: magnet_bed, lj_box\)"):
+        start_spec(Scene.read(ROOT / "runs" / "dla.nml"))
