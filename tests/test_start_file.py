@@ -434,3 +434,13 @@ def test_a_kind_without_start_files_is_named(tmp_path):
     with pytest.raises(SceneError, match=r"kind 'dla' cannot start from a frame \(kinds that "
                                          r"can: magnet_bed, lj_box\)"):
         start_spec(Scene.read(ROOT / "runs" / "dla.nml"))
+
+
+def test_both_doors_start_alike(bed_a, tmp_path):
+    """The f2py door reads the same start file the same way: identical output files."""
+    exe = run_from_gsd(bed_scene(), bed_a / "frames.gsd", tmp_path / "exe", progress=False).dir
+    f2py = run_from_gsd(bed_scene(), bed_a / "frames.gsd", tmp_path / "f2py", door="f2py",
+                        progress=False).dir
+    assert (exe / "start.txt").read_bytes() == (f2py / "start.txt").read_bytes()
+    for name in ("particles.dat", "piston.dat", "mean_distance.dat"):
+        assert (exe / name).read_bytes() == (f2py / name).read_bytes(), name
