@@ -8,7 +8,7 @@ one (their subpackage has a module ``start`` with ``start_spec(scene) -> StartSp
 ``magnet_bed``, ``lj_box``):
 
 - HOOMD's box is centred (-L/2 .. L/2): positions are shifted by (+Lx/2, +Ly/2) of the
-  scene's box, which the frame's box must equal (to float32 precision);
+  scene's box, which the frame's box must equal (to a relative 1e-5: float32 files);
 - types map to the scene's species by name (our export's ``species1``, ``species2``, ...),
   by an explicit ``type_map`` ({"A": 1, "B": 2}), or else by diameter (``particles/diameter``
   equal to a species' diameter); a diameter that disagrees with the species is refused. A
