@@ -2,8 +2,10 @@
 
     pyorch run SCENE.nml [--out DIR] [--overwrite] [--set group.key=value ...] [--door exe|f2py]
                [--no-plots]
+    pyorch run SCENE.nml --start-from FILE.gsd[:FRAME] [--type-map A=1,B=2] [...]
     pyorch run --resume RUN_DIR
     pyorch check SCENE.nml [--set ...]
+    pyorch scene describe KIND | start-file SCENE.nml FILE.gsd[:FRAME] [-o OUT]
     pyorch plot RUN_DIR [--out DIR] [--no-structure]
     pyorch analyze RUN_DIR [--out DIR]
     pyorch bench trade|bias|seeds [--scene S] [--seeds N] [--quick] [--workers W]
@@ -40,6 +42,12 @@ def _parser() -> argparse.ArgumentParser:
                 "'pyorch scene describe KIND' lists the keys")
     r.add_argument("--set", dest="overrides", action="append", default=[],
                    metavar="GROUP.KEY=VALUE", help=set_help)
+    r.add_argument("--start-from", default=None, metavar="FILE.gsd[:FRAME]",
+                   help="start from frame FRAME of a GSD file (default the last): converted "
+                        "into RUN_DIR/start.txt, which the run's &particles start_file names")
+    from pyorch.start import add_scene_parser, add_type_map
+
+    add_type_map(r)
     r.add_argument("--door", choices=["exe", "f2py"], default="exe")
     r.add_argument("--no-plots", action="store_true")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -55,6 +63,7 @@ def _parser() -> argparse.ArgumentParser:
     de = sc_sub.add_parser("describe", help="print the table of a kind's keys (Markdown)")
     de.add_argument("kind", help="scene kind: magnet_bed, oscillator, dla, rods, lj_box")
     de.add_argument("--json", action="store_true", help="the declaration as JSON")
+    add_scene_parser(sc_sub, set_help)
 
     pl = sub.add_parser("plot", help="write the standard figures of a run directory")
     pl.add_argument("run_dir", type=Path)
@@ -121,6 +130,10 @@ def _main(args: argparse.Namespace) -> int:
             return _cmd_run(args)
         if args.cmd == "check":
             return _cmd_check(args)
+        if args.cmd == "scene" and args.scene_cmd == "start-file":
+            from pyorch.start import cmd_start_file
+
+            return cmd_start_file(args)
         if args.cmd == "scene":
             import json
 
@@ -214,9 +227,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from pyorch.run import resume
 
     if args.resume is not None:
-        if args.scene is not None or args.overrides or args.out is not None or args.overwrite:
+        if args.scene is not None or args.overrides or args.out is not None or args.overwrite \
+                or args.start_from is not None:
             raise SceneError("--resume RUN_DIR continues a run as it was: no scene, --set, "
-                             "--out or --overwrite")
+                             "--out, --overwrite or --start-from")
         result = resume(args.resume, door=args.door, progress=not args.quiet)
         out = args.resume
         meta = result.meta
@@ -235,7 +249,12 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if choice:
         print(choice)
     out = Path(args.out) if args.out is not None else Path("runs") / "out" / args.scene.stem
-    if args.overrides or choice:
+    if args.start_from is not None:
+        from pyorch.start import parse_type_map, run_from_gsd
+
+        result = run_from_gsd(tuned, args.start_from, out, parse_type_map(args.type_map),
+                              overwrite=args.overwrite, door=args.door, progress=not args.quiet)
+    elif args.overrides or choice:
         result = run(tuned, out, door=args.door, progress=not args.quiet, overwrite=args.overwrite)
     else:  # the user's file as it is: the engine reads it and names it in any message
         result = run(args.scene, out, door=args.door, progress=not args.quiet,

@@ -24,7 +24,7 @@ KEYS = {
     "scene": ["kind", "title"],
     "box": ["l"],
     "particles": ["n", "placement", "min_distance", "velocities", "speed", "temperature",
-                  "seed", "type_id"],
+                  "seed", "type_id", "start_file"],
     "steric": ["law", "p", "u0", "r_m", "r_cut", "neighbour", "skin", "pair_eval", "pair_table_error"],
     "physics": ["alpha"],
     "field": ["type", "f0x", "f0y", "gxx", "gxy", "gyx", "gyy", "x0", "y0", "amplitude", "ex",
@@ -67,7 +67,7 @@ def line_of(path: Path, needle: str) -> int:
      "unknown namelist group &material for kind 'lj_box'"),
     ("  seed = 1", "  seed = 1\n  jitter = 0.1", "jitter",
      "&particles: unknown key 'jitter' (keys: n, placement, min_distance, velocities, speed, "
-     "temperature, seed, type_id)"),
+     "temperature, seed, type_id, start_file)"),
     ("ex = 1.0, ey = 0.0", "ex(3) = 1.0", "ex(3)", "&field ex(3): ex is not an array"),
     ("n = 200", "n = NaN", "n = NaN", "&particles n = NaN: must be an integer"),
     ("alpha = 0.02", "alpha = NaN", "alpha = NaN", "&physics alpha = NaN: must be a finite number"),

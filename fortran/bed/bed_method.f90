@@ -6,7 +6,9 @@ module bed_method
   use kinds, only: dp, i8
   use errors, only: status_t, set_error, exit_ok
   use method, only: method_t, fname_len, max_out_files, add_output
-  use ckpt, only: ckpt_writer_t
+  use ckpt, only: ckpt_writer_t, ckpt_put
+  use start_file, only: start_json, check_start_crc
+  use, intrinsic :: iso_fortran_env, only: int8
   use scene_input, only: int_str
   use engine, only: sim_t, sim_load, sim_step, pairs_per_step
   use protocol, only: phase_names
@@ -124,10 +126,14 @@ contains
     binary_frames = self%sim%sc%frame_every > 0 .and. trim(self%sim%sc%frames_format) /= 'text'
   end function binary_frames
 
+  !> The MD payload, then the CRC-64 of the start file (0 without one): a resume refuses a
+  !> start file that changed since the run began (the scene names it, its bytes are bound).
   subroutine save_state(self, w)
     class(bed_t), intent(in) :: self
     type(ckpt_writer_t), intent(inout) :: w
+    integer(int8), parameter :: b(0) = [integer(int8) ::]
     call checkpoint_save(w, self%sim%s, self%sim%nl, self%sim%pst)
+    call ckpt_put(w, transfer(self%sim%start%crc, b))
   end subroutine save_state
 
   subroutine restore_state(self, u, st)
@@ -135,6 +141,8 @@ contains
     integer, intent(in) :: u
     type(status_t), intent(inout) :: st
     call checkpoint_restore(u, self%sim%s, self%sim%nl, self%sim%pst, st)
+    if (st%code /= 0) return
+    call check_start_crc(u, self%sim%start, st)
   end subroutine restore_state
 
   subroutine counters(self, done, total, t)
@@ -160,7 +168,7 @@ contains
     character(len=1), parameter :: nl = achar(10)
     associate (m => self%sim%m, sim => self%sim)
       text = '  "n_particles": '//int_str(int(sim%s%n, i8))//','//nl// &
-           '  "species_counts": '//counts()//','//nl// &
+           '  "species_counts": '//counts()//','//nl//start_json(sim%start)// &
            '  "list_builds": '//int_str(sim%nl%builds)//','//nl// &
            '  "pairs_per_step": '//int_str(pairs_per_step(sim))//','//nl// &
            '  "pair_evaluations": '//int_str(sim%nl%evaluated)//','//nl// &

@@ -9,6 +9,7 @@ module engine
   use state, only: state_t, state_allocate
   use protocol, only: protocol_t, protocol_build, piston_at, phase_names
   use initial, only: place_particles
+  use start_file, only: start_t
   use pair_forces, only: pair_forces_all, pair_forces_list, pair_forces_far, pair_energy_all, &
        dipole_table, max_bits
   use scene_input, only: real_str, int_str
@@ -38,6 +39,7 @@ module engine
     logical :: writing = .false.        !< a run directory is open
     logical :: need_velocity = .false.  !< some force depends on velocity
     real(dp) :: area = 0                !< total particle area [D1^2]
+    type(start_t) :: start              !< &particles start_file as read (n = 0: the grid)
   end type sim_t
 
 contains
@@ -99,7 +101,8 @@ contains
     area = 0
     ! area needs species counts: place first with the start height, then build
     call protocol_build(sim%sc, sim%m, 1.0_dp, sim%p)
-    call place_particles(sim%sc, sim%m, sim%p%h_start, sim%scene_path, sim%s, st)
+    call place_particles(sim%sc, sim%m, sim%p%h_start, sim%scene_path, sim%s, sim%start, &
+         st)
     if (st%code /= 0) return
     do k = 1, sim%s%n
       area = area + 0.25_dp*pi*sim%m%sp_diam(sim%s%species(k))**2

@@ -1,6 +1,7 @@
 !> Initial condition (thesis §2.3.2, §4.2.2): particles on a perturbed grid
 !> filling the cell below the piston, random velocity directions, species
 !> assigned by the thesis' interleaving rule or at random. Seeded RNG.
+!> Or, with &particles start_file, the frame of a start file (module start_file).
 module initial
   use kinds, only: dp, pi, i8
   use errors, only: status_t, set_error, exit_bad_input
@@ -9,6 +10,8 @@ module initial
   use model, only: model_t
   use state, only: state_t, state_allocate
   use rng, only: seed_rng
+  use start_file, only: start_t, start_read, start_check_region, start_check_distances, &
+       start_release
   implicit none
   private
 
@@ -70,14 +73,15 @@ contains
     end do
   end subroutine interleave
 
-  subroutine place_particles(sc, m, top, path, s, st)
+  subroutine place_particles(sc, m, top, path, s, sf, st)
     type(scene_t), intent(in) :: sc
     type(model_t), intent(in) :: m
     real(dp), intent(in) :: top            !< piston height at t = 0 [D1]
     character(len=*), intent(in) :: path   !< scene file, for messages
     type(state_t), intent(inout) :: s
+    type(start_t), intent(inout) :: sf     !< the start file read (n = 0: the grid)
     type(status_t), intent(inout) :: st
-    real(dp) :: wa, ha, sx, sy, u(2), ang, ymax, dmax
+    real(dp) :: wa, ha, sx, sy, u(2), ymax, dmax
     integer :: nc, nr, i, k, j, tmp
     integer, allocatable :: perm(:), cnt(:)
     real(dp), allocatable :: frac(:)
@@ -85,15 +89,10 @@ contains
 
     call state_allocate(s, sc%n)
     call seed_rng(sc%seed)
-
-    ! species: fractions f_k (mix_ratio R for two species)
-    allocate(frac(sc%n_species))
-    if (sc%n_species == 2) then
-      frac = [1 - sc%mix_ratio, sc%mix_ratio]
-    else if (sc%n_species > 2) then
-      frac = sc%species_fraction(1:sc%n_species)
-    else
-      frac = [1.0_dp]
+    frac = fractions(sc)
+    if (len_trim(sc%start_file) > 0) then
+      call place_from_file(sc, m, top, path, frac, s, sf, st)
+      return
     end if
     if (trim(sc%placement) == 'random' .and. sc%n_species > 1) then
       ! exact counts (largest remainder), then a Fisher-Yates shuffle of the grid slots
@@ -159,16 +158,129 @@ contains
     end do
     call check_grid_distances(sc, s, nc, sx, sy, path, st)
     if (st%code /= 0) return
-    do k = 1, sc%n
-      call random_number(u(1))
-      ang = 2*pi*u(1)
-      s%vx(k) = sc%speed_init*cos(ang)
-      s%vy(k) = sc%speed_init*sin(ang)
-    end do
+    call random_velocities(sc, s)
     s%xp = s%x
     s%yp = s%y
     s%has_previous = .false.
   end subroutine place_particles
+
+  !> Number fractions f_k of the species (mix_ratio R for two species).
+  function fractions(sc) result(frac)
+    type(scene_t), intent(in) :: sc
+    real(dp), allocatable :: frac(:)
+    if (sc%n_species == 2) then
+      frac = [1 - sc%mix_ratio, sc%mix_ratio]
+    else if (sc%n_species > 2) then
+      frac = sc%species_fraction(1:sc%n_species)
+    else
+      frac = [1.0_dp]
+    end if
+  end function fractions
+
+  !> Speed speed_init in uniformly random directions (the RNG as seeded).
+  subroutine random_velocities(sc, s)
+    type(scene_t), intent(in) :: sc
+    type(state_t), intent(inout) :: s
+    integer :: k
+    real(dp) :: u, ang
+    do k = 1, sc%n
+      call random_number(u)
+      ang = 2*pi*u
+      s%vx(k) = sc%speed_init*cos(ang)
+      s%vy(k) = sc%speed_init*sin(ang)
+    end do
+  end subroutine random_velocities
+
+  !> &particles start_file: positions, species and (if the file has them) velocities of its
+  !> rows, particle k = row k. Refused, naming the line: what start_read refuses; a centre
+  !> closer than min_distance/2 to a wall or the piston at t = 0 (as close as a pair at
+  !> min_distance would be to each other; at least a rounding away with min_distance 0);
+  !> two centres closer than &physics min_distance; no species column with n_species > 1;
+  !> a composition other than the scene's (mix_ratio / species_fraction: within one
+  !> particle of f_k n, the value to set is named). Without velocities: speed_init in random
+  !> directions from seed, as on the grid.
+  subroutine place_from_file(sc, m, top, path, frac, s, sf, st)
+    type(scene_t), intent(in) :: sc
+    type(model_t), intent(in) :: m
+    real(dp), intent(in) :: top, frac(:)
+    character(len=*), intent(in) :: path
+    type(state_t), intent(inout) :: s
+    type(start_t), intent(inout) :: sf
+    type(status_t), intent(inout) :: st
+    character(len=:), allocatable :: where
+    real(dp) :: wmin
+    where = trim(path)//': &particles start_file = '''//trim(sc%start_file)//''''
+    call start_read(where, trim(sc%start_file), 'magnet_bed', 'D1', 'D1/T', sc%n, &
+         [m%width, m%height], '&cell width, height', sc%n_species, 1.0e3_dp, &
+         '&particles speed_init', sf, st)
+    if (st%code /= 0) return
+    if (sc%n_species > 1 .and. .not. sf%has_species) then
+      call set_error(st, exit_bad_input, where//': no species column, and the scene has '// &
+           '&particles n_species = '//int_str(int(sc%n_species, i8))//' (add the column '// &
+           '"species", 1 .. n_species)')
+      return
+    end if
+    wmin = max(0.5_dp*sc%min_distance, epsilon(1.0_dp)*max(m%width, top))
+    call start_check_region(sf, [wmin, wmin], [m%width - wmin, top - wmin], 'D1', &
+         'the cell below the piston at t = 0 (H = '//real_str(top)//' D1) with '// &
+         'min_distance/2 = '//real_str(wmin)//' D1 to each wall (&physics min_distance, '// &
+         '&cell width, &protocol h_start)', st)
+    if (st%code /= 0) return
+    call start_check_distances(sf, sc%min_distance, 'D1', '&physics min_distance', st)
+    if (st%code /= 0) return
+    call check_composition(sc, frac, sf, where, st)
+    if (st%code /= 0) return
+    s%x = sf%x
+    s%y = sf%y
+    s%species = sf%species
+    if (sf%has_velocity) then
+      s%vx = sf%vx
+      s%vy = sf%vy
+    else
+      call random_velocities(sc, s)
+    end if
+    call start_release(sf)
+    s%mass = m%sp_mass(s%species)
+    s%mu = m%sp_mu(s%species)
+    s%wsin = s%mu*m%sp_sin(s%species)
+    s%nfac = m%sp_nfac(s%species)
+    s%xp = s%x
+    s%yp = s%y
+    s%has_previous = .false.
+  end subroutine place_from_file
+
+  !> The file's species counts must be the scene's composition (within one particle of
+  !> f_k n): the scene states what runs (issue 30, 1). The message gives the value to set.
+  subroutine check_composition(sc, frac, sf, where, st)
+    type(scene_t), intent(in) :: sc
+    real(dp), intent(in) :: frac(:)
+    type(start_t), intent(in) :: sf
+    character(len=*), intent(in) :: where
+    type(status_t), intent(inout) :: st
+    integer :: k, j, cnt(size(frac))
+    character(len=:), allocatable :: want, key
+    do k = 1, size(frac)
+      cnt(k) = count(sf%species == k)
+    end do
+    k = 0
+    if (any(abs(cnt - frac*sc%n) >= 1.0_dp)) k = maxloc(abs(cnt - frac*sc%n), dim=1)
+    if (k == 0) return
+    if (size(frac) == 2) then
+      k = 2       ! R is the fraction of species 2
+      key = 'mix_ratio = '//real_str(sc%mix_ratio)
+      want = 'mix_ratio = '//real_str(real(cnt(2), dp)/sc%n)
+    else
+      key = 'species_fraction('//int_str(int(k, i8))//') = '//real_str(frac(k))
+      want = 'species_fraction = '//real_str(real(cnt(1), dp)/sc%n)
+      do j = 2, size(frac)
+        want = want//', '//real_str(real(cnt(j), dp)/sc%n)
+      end do
+    end if
+    call set_error(st, exit_bad_input, where//': holds '//int_str(int(cnt(k), i8))//' of '// &
+         int_str(int(sc%n, i8))//' particles of species '//int_str(int(k, i8))//', the '// &
+         'scene''s &particles '//key//' asks for '//r4(frac(k)*sc%n)//' (the scene states '// &
+         'the composition that runs): set &particles '//want)
+  end subroutine check_composition
 
   !> The thesis' interleaving rule (every floor(1/R)-th particle of species 2) reaches only
   !> R = 1/k and 1 - 1/k: a mix_ratio it cannot realise (e.g. 0.4 -> 0.5) is refused naming the

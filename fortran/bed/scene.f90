@@ -44,6 +44,7 @@ module scene
     real(dp) :: mix_ratio = 0.0_dp      !< R: fraction of species 2 (bi-disperse)
     real(dp) :: species_fraction(max_species) = 0.0_dp  !< number fractions (n_species > 2)
     character(len=name_len) :: placement = 'interleave'  !< 'interleave' | 'random'
+    character(len=512) :: start_file = ''  !< start from this file's frame (module start_file)
     ! &physics
     character(len=name_len) :: pair_law = 'dipole'        !< 'dipole' | 'none'
     character(len=name_len) :: wall_law = 'experimental'  !< 'experimental' | 'infinite' | 'slab' | 'none'
@@ -173,6 +174,11 @@ contains
     call s%key('species_fraction', sc%species_fraction, '1', 'number fractions (n_species > 2)', &
          lo=0.0_dp, hi=1.0_dp)
     call s%key('placement', sc%placement, '', 'species on the grid', choices='interleave|random')
+    call s%key('start_file', sc%start_file, '', 'start from this file (format: fortran/md/'// &
+         'start_file.f90; pyorch scene start-file makes one from a GSD frame): positions, '// &
+         'species and, if it has them, velocities [D1, D1/T]; the grid keys (seed: only for '// &
+         'velocities it lacks) are then unused; a path relative to the working directory '// &
+         '('''' = the grid)')
     call s%group('physics', 'each term switched by the scene')
     call s%key('pair_law', sc%pair_law, '', 'pair force: dipole repulsion (3/4) F mu_i mu_j '// &
          'r^-4 (eq. 4.3)', choices='dipole|none')
@@ -374,7 +380,9 @@ contains
     call check_step_count(sc, hs, h0, path, st)
     if (st%code /= 0) return
     ! before anything is allocated: the start grid needs at least (1.05 D_max)^2 per particle
-    if (real(sc%n, dp) > sc%width*merge(sc%fill_height, hs, sc%fill_height > 0.0_dp)/1.05_dp**2) &
+    ! (a start file is checked for overlaps instead)
+    if (len_trim(sc%start_file) == 0 .and. real(sc%n, dp) > sc%width* &
+         merge(sc%fill_height, hs, sc%fill_height > 0.0_dp)/1.05_dp**2) &
          call bad('particles', 'n', istr(sc%n), 'particles cannot fit in the cell below the '// &
          'piston (at most '//istr(int(sc%width*merge(sc%fill_height, hs, sc%fill_height > &
          0.0_dp)/1.05_dp**2))//' in '//real_str(sc%width)//' x '//real_str(merge(sc%fill_height, hs, &

@@ -32,6 +32,8 @@ module lj_box
        finish_velocity, advance_step => advance
   use rng, only: seed_rng
   use checkpoint, only: checkpoint_save, checkpoint_restore
+  use start_file, only: start_t, start_read, start_check_region, start_check_distances, &
+       start_json, check_start_crc, start_release
   use parallel, only: init_threads
   use, intrinsic :: iso_fortran_env, only: int8
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
@@ -71,6 +73,7 @@ module lj_box
     real(dp) :: temperature = 1             !< kT [m g a]
     integer(i8) :: seed = 1
     integer(i8) :: type_id = 0              !< particle type written to frames (GNS: not 3)
+    character(len=512) :: start_file = ''   !< start from this file's frame (module start_file)
     ! &steric
     character(len=nm) :: law = 'lj'
     integer(i8) :: p = 6
@@ -102,6 +105,7 @@ module lj_box
     type(lj_law_t) :: lj
     type(pair_table_t) :: ljtab             !< the law's table (pair_eval = 'table'; off: exact)
     type(state_t) :: s, none
+    type(start_t) :: start                  !< the start file as read (path unset: none)
     type(nlist_t) :: nl
     integer :: method = int_semi_euler, strategy = nb_verlet
     logical :: steric_on = .true.
@@ -149,6 +153,10 @@ contains
          hi=2147483647_i8)
     call s%key('type_id', self%type_id, '', 'particle type written to the frames (not 3: '// &
          'gns treats type 3 as kinematic)', lo=0_i8, hi=1000_i8)
+    call s%key('start_file', self%start_file, '', 'start from this file (format: fortran/md/'// &
+         'start_file.f90; pyorch scene start-file makes one from a GSD frame): positions and, '// &
+         'if it has them, velocities [a, a/T] (placement unused; velocities only for a file '// &
+         'without them); a path relative to the working directory ('''' = placement)')
     call s%group('steric', 'the truncated Lennard-Jones pair law (eqs. 3-5, 8-9) and the '// &
          'neighbour search')
     call s%key('law', self%law, '', 'the pair law (eqs. 3-5), or no pair forces', &
@@ -377,10 +385,14 @@ contains
     real(dp), parameter :: two_pi = 6.283185307179586476925286766559_dp
     real(dp) :: u(2), span, a
     integer :: i, placed, m, side
+    character(len=nm) :: rule
     call seed_rng(int(self%seed))
     associate (s => self%s)
       span = self%hi - self%lo
-      if (trim(self%placement) == 'lattice') then
+      if (len_trim(self%start_file) > 0) then
+        call place_from_file(self, path, st)
+        if (st%code /= 0) return
+      else if (trim(self%placement) == 'lattice') then
         side = ceiling(sqrt(real(self%n, dp)) - 1.0e-9_dp)
         a = span/side
         if (a < self%min_distance) then
@@ -403,7 +415,11 @@ contains
           return
         end if
       end if
-      select case (trim(self%velocities))
+      rule = self%velocities
+      if (self%start%has_velocity) rule = 'file'
+      select case (trim(rule))
+      case ('file')
+        s%vx = self%start%vx; s%vy = self%start%vy
       case ('speed')
         do i = 1, s%n
           call random_number(u(1))
@@ -426,6 +442,7 @@ contains
       case default
         s%vx = 0; s%vy = 0
       end select
+      call start_release(self%start)
       s%mass = 1; s%mu = 1; s%wsin = 0
       s%step = 0
       s%t = 0
@@ -433,6 +450,28 @@ contains
     end associate
     self%wall_hits = 0
   end subroutine initial_state
+
+  !> &particles start_file: positions (and velocities) of its rows, particle k = row k.
+  !> Refused, naming the line: what start_read refuses, a centre outside the reachable box
+  !> [lo, hi]^2 (&walls contact), two centres closer than &particles min_distance.
+  subroutine place_from_file(self, path, st)
+    class(lj_box_t), intent(inout) :: self
+    character(len=*), intent(in) :: path
+    type(status_t), intent(inout) :: st
+    character(len=:), allocatable :: where
+    where = trim(path)//': &particles start_file = '''//trim(self%start_file)//''''
+    call start_read(where, trim(self%start_file), 'lj_box', 'a', 'a/T', int(self%n), &
+         [self%l, self%l], '&box l', 0, 1.0e6_dp, '&particles speed', self%start, st)
+    if (st%code /= 0) return
+    call start_check_region(self%start, [self%lo, self%lo], [self%hi, self%hi], 'a', &
+         'the box the centres reach (&box l, &walls contact = '''//trim(self%contact)// &
+         ''': with ''surface'' at least a from each wall)', st)
+    if (st%code /= 0) return
+    call start_check_distances(self%start, self%min_distance, 'a', '&particles min_distance', st)
+    if (st%code /= 0) return
+    self%s%x = self%start%x
+    self%s%y = self%start%y
+  end subroutine place_from_file
 
   !> Random sequential addition with a cell grid of side >= min_distance: each particle
   !> gets up to 20 000 tries. placed = how many found room.
@@ -708,13 +747,14 @@ contains
   end subroutine close_outputs
 
   !> The bed's payload (state, integrator history, neighbour list, RNG), then the wall
-  !> hits and the field table's CRC-64 (a changed table file refuses the resume).
+  !> hits, the field table's and the start file's CRC-64 (a changed file refuses the resume).
   subroutine save_state(self, w)
     class(lj_box_t), intent(in) :: self
     type(ckpt_writer_t), intent(inout) :: w
     integer(int8), parameter :: b(0) = [integer(int8) ::]
     call checkpoint_save(w, self%s, self%nl, self%none)
-    call ckpt_put(w, [transfer(self%wall_hits, b), transfer(self%table_crc, b)])
+    call ckpt_put(w, [transfer(self%wall_hits, b), transfer(self%table_crc, b), &
+         transfer(self%start%crc, b)])
   end subroutine save_state
 
   subroutine restore_state(self, u, st)
@@ -732,6 +772,8 @@ contains
     else if (crc /= self%table_crc) then
       call set_error(st, exit_io, 'checkpoint: the field table '''//trim(self%field_file)// &
            ''' changed since the checkpoint (CRC-64 differs)')
+    else
+      call check_start_crc(u, self%start, st)
     end if
   end subroutine restore_state
 
@@ -763,7 +805,8 @@ contains
          '  "field_conservative": '//trim(merge('true ', 'false', &
          field_has_potential(self%fl)))//','//nl// &
          '  "units": {"length": "a", "time": "T = sqrt(a/g)", "mass": "m", '// &
-         '"force": "m g", "energy": "m g a"},'//nl//table_json(self%ljtab)
+         '"force": "m g", "energy": "m g a"},'//nl//start_json(self%start)// &
+         table_json(self%ljtab)
   end function json_fields
 
 end module lj_box
