@@ -117,17 +117,26 @@ contains
     class(method_t), intent(inout), target :: self
     character(len=*), intent(in) :: path
     type(status_t), intent(inout) :: st
+    call load_sequence(self, path, .true., st)
+  end subroutine load_default
+
+  !> Keys and read (the file-level and type checks), then, when `whole`, the rest of load.
+  subroutine load_sequence(self, path, whole, st)
+    class(method_t), intent(inout), target :: self
+    character(len=*), intent(in) :: path
+    logical, intent(in) :: whole
+    type(status_t), intent(inout) :: st
     type(schema_t) :: s
     call self%keys(s)
     call s%read(path, st)
-    if (st%code /= 0) return
+    if (st%code /= 0 .or. .not. whole) return
     call self%resolve()
     call s%validate(path, st)
     if (st%code /= 0) return
     call self%rules(s, path, st)
     if (st%code /= 0) return
     call self%setup(path, st)
-  end subroutine load_default
+  end subroutine load_sequence
 
   !> Keys resolved from others before validation (e.g. 'box centre' for a
   !> negative coordinate): none by default.
@@ -190,9 +199,7 @@ contains
     class(method_t), intent(inout), target :: self
     character(len=*), intent(in) :: path
     type(status_t), intent(inout) :: st
-    type(schema_t) :: s
-    call self%keys(s)
-    call s%read(path, st)
+    call load_sequence(self, path, .false., st)
   end subroutine read_default
 
   !> The fully resolved scene (every key, its value, unit and meaning), lines

@@ -136,29 +136,36 @@ contains
   subroutine flush_all(self, st)
     class(output_set_t), intent(inout) :: self
     type(status_t), intent(inout) :: st
-    integer :: k
-    do k = 1, self%n
-      if (self%o(k)%binary) then
-        call frames_flush(self%o(k)%fr, st)
-      else
-        call table_flush(self%o(k)%tab, st)
-      end if
-    end do
+    call each(self, .false., st)
   end subroutine flush_all
 
   !> fflush + fsync + close every output (each is closed even after a failure).
   subroutine close_all(self, st)
     class(output_set_t), intent(inout) :: self
     type(status_t), intent(inout) :: st
+    call each(self, .true., st)
+  end subroutine close_all
+
+  !> Flush (closing: fsync and close) every output, in registration order.
+  subroutine each(self, closing, st)
+    class(output_set_t), intent(inout) :: self
+    logical, intent(in) :: closing
+    type(status_t), intent(inout) :: st
     integer :: k
     do k = 1, self%n
-      if (self%o(k)%binary) then
-        call frames_close(self%o(k)%fr, st)
-      else
-        call table_close(self%o(k)%tab, st)
-      end if
+      associate (o => self%o(k))
+        if (o%binary .and. closing) then
+          call frames_close(o%fr, st)
+        else if (o%binary) then
+          call frames_flush(o%fr, st)
+        else if (closing) then
+          call table_close(o%tab, st)
+        else
+          call table_flush(o%tab, st)
+        end if
+      end associate
     end do
-  end subroutine close_all
+  end subroutine each
 
   !> The names of the outputs, in registration order (relative to the run directory).
   subroutine names(self, list, n)

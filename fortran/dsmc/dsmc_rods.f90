@@ -88,9 +88,7 @@ contains
     type(schema_t), intent(inout) :: s
     call s%init('rods', 'kind rods (space-homogeneous DSMC). Units: mass m, length L, '// &
          'time t0; energies m L^2/t0^2.')
-    call s%group('scene', 'what this scene is', required=.true.)
-    call s%key('kind', self%kind, '', 'the method and system of this scene', choices='rods')
-    call s%key('title', self%title, '', 'free text (UTF-8)')
+    call s%scene_group(self%kind, self%title)
     call s%group('rods', 'the samples, their initial law and the step')
     call s%key('n', self%n, '', 'samples (rods)', lo=2_i8, hi=200000000_i8)
     call s%key('m', self%m, 'm', 'mass of a rod', lo=0.0_dp, lo_open=.true., hi=1.0e6_dp)

@@ -96,9 +96,7 @@ contains
     class(dla_t), intent(inout), target :: self
     type(schema_t), intent(inout) :: s
     call s%init('dla', 'kind dla (every key). '//units)
-    call s%group('scene', 'what this scene is', required=.true.)
-    call s%key('kind', self%kind, '', 'the method and system of this scene', choices='dla')
-    call s%key('title', self%title, '', 'free text (UTF-8)')
+    call s%scene_group(self%kind, self%title)
     call s%group('box', 'the closed box [0, lx] x [0, ly]')
     call s%key('lx', self%lx, 'L', 'box side along x', lo=0.0_dp, lo_open=.true., hi=1.0e9_dp)
     call s%key('ly', self%ly, 'L', 'box side along y', lo=0.0_dp, lo_open=.true., hi=1.0e9_dp)

@@ -126,9 +126,7 @@ contains
     class(lj_box_t), intent(inout), target :: self
     type(schema_t), intent(inout) :: s
     call s%init('lj_box', 'kind lj_box (seed 000). '//units)
-    call s%group('scene', 'what this scene is', required=.true.)
-    call s%key('kind', self%kind, '', 'the method and system of this scene', choices='lj_box')
-    call s%key('title', self%title, '', 'free text (UTF-8)')
+    call s%scene_group(self%kind, self%title)
     call s%group('box', 'the square box [0, L]^2')
     call s%key('l', self%l, 'a', 'side L of the box (> 2 with contact = ''surface'')', &
          lo=0.0_dp, lo_open=.true., hi=1.0e6_dp)

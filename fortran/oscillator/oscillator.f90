@@ -67,9 +67,7 @@ contains
     type(schema_t), intent(inout) :: s
     call s%init('oscillator', 'kind oscillator. Units: length L, time tau (the user''s '// &
          'choice), unit mass.')
-    call s%group('scene', 'what this scene is', required=.true.)
-    call s%key('kind', self%kind, '', 'the method and system of this scene', choices='oscillator')
-    call s%key('title', self%title, '', 'free text (UTF-8)')
+    call s%scene_group(self%kind, self%title)
     call s%group('oscillator', 'the oscillators and their integration')
     call s%key('n', self%n, '', 'number of oscillators', lo=1_i8, hi=10000000_i8)
     call s%key('omega', self%omega, 'rad/tau', 'natural angular frequency', lo=0.0_dp, &
