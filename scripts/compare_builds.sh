@@ -45,9 +45,13 @@ cat > "$S/lj.nml" <<'EOF'
 &output frame_every = 20, energy_every = 10, field_grid = 4, frames_format = 'both',
   checkpoint_every = 70 /
 EOF
-# the bed: the demo scene with every output on, both frame formats
+# the bed: the demo scene, a short stroke (1 D1 after 2 T of relaxation), every output on,
+# both frame formats
 sed -e "s/^  frame_every = 5000/  frame_every = 100\n  energy_every = 50\n  frames_format = 'both'\n  checkpoint_every = 150/" \
-    -e 's/^  distance_every = 1000/  distance_every = 40/' "$ROOT/runs/demo.nml" > "$S/bed.nml"
+    -e 's/^  distance_every = 1000/  distance_every = 40/' -e 's/^  t_relax = 60.0 /  t_relax = 2.0 /' \
+    -e 's/^  hf = 20.0 /  hf = 74.0 /' -e 's/^  t_final = 10.0 /  t_final = 1.0 /' \
+    "$ROOT/runs/demo.nml" > "$S/bed.nml"
+grep -q "t_relax = 2.0" "$S/bed.nml" && grep -q "hf = 74.0" "$S/bed.nml"
 grep -q "frames_format = 'both'" "$S/bed.nml"
 
 fail=0 fail_ckpt=0
