@@ -6,7 +6,7 @@
 !> float64 values as computed). The files are a set of module output_set: the
 !> method opens, flushes, closes and lists them through o%set.
 module output
-  use kinds, only: dp, i8
+  use kinds, only: dp
   use errors, only: status_t
   use model, only: model_t
   use state, only: state_t
