@@ -45,6 +45,7 @@ contains
     integer, intent(in) :: n
     character(len=200) :: units
     integer :: k
+    o%set = output_set_t()     ! a load again registers the outputs afresh
     write(units, '(a,es10.4,a,es10.4,a,es10.4,a)') 'Units: D1 = ', m%length_unit, ' m, T = ', &
          m%time_unit, ' s, m1*g = ', m%force_unit, ' N'
     call o%set%table(o%piston, 'piston.dat', &

@@ -130,6 +130,7 @@ contains
     call self%keys(s)
     call s%read(path, st)
     if (st%code /= 0 .or. .not. whole) return
+    self%out = output_set_t()          ! a load again registers the outputs afresh
     call self%resolve()
     call s%validate(path, st)
     if (st%code /= 0) return
