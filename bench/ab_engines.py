@@ -14,6 +14,9 @@ on the machine (the same total twice), so a 1 % difference is a real one.
 The scene file (``--scene``, default runs/standard.nml) is patched with f90nml, not resolved by
 this checkout's engine, so an older executable reads it too: give it a scene both understand
 (e.g. the older checkout's runs/standard.nml). Output: bench/results/ab_engines.csv.
+
+``--kinds`` adds one scene of every other kind (this checkout's runs/, patched the same way),
+each writing rows or frames at a high cadence, so the write path is timed too.
 """
 from __future__ import annotations
 
@@ -41,6 +44,21 @@ SCENES = {
                                               "protocol.piston": "fixed", "protocol.t_end": 20.0,
                                               "output.distance_every": 0}),
 }
+
+#: label -> (scene in runs/, overrides): the other kinds, rows or frames at a high cadence
+KIND_SCENES = {
+    "oscillator N=100, rows every step": ("oscillator.nml", {
+        "oscillator.t_end": 2.0, "output.trajectory_every": 1, "output.energy_every": 1}),
+    "rods N=2e4, history every step": ("rods_test1_free.nml", {
+        "rods.n": 20000, "rods.t_end": 2.0, "output.history_every": 1,
+        "output.histogram_every": 10}),
+    "dla N=1500, text+binary frames every 10 ticks": ("dla.nml", {
+        "run.t_end": 20.0, "output.frame_every": 10, "output.frames_format": "both"}),
+    "lj_box N=200, text+binary frames every 10 steps": ("lj_demo.nml", {
+        "integration.steps": 2000, "output.frame_every": 10, "output.energy_every": 10,
+        "output.frames_format": "both"}),
+}
+
 
 def patched(scene: Path, over: dict, out: Path) -> Path:
     """``scene`` with ``{"group.key": value}`` overrides, written to ``out``."""
@@ -98,6 +116,8 @@ def main() -> None:
     ap.add_argument("--scene", type=Path, default=common.REPO / "runs" / "standard.nml")
     ap.add_argument("--instructions", action="store_true",
                     help="count instructions per step with callgrind instead of timing")
+    ap.add_argument("--kinds", action="store_true",
+                    help="also time one row-heavy scene of every other kind (KIND_SCENES)")
     args = ap.parse_args()
     rows = []
     if args.instructions:
@@ -109,9 +129,13 @@ def main() -> None:
                              "B_instructions_per_step": ib, "B_over_A": ib / ia})
         common.save_table(pd.DataFrame(rows), "ab_instructions.csv")
         return
+    scenes = [(label, args.scene, over) for label, (_, over) in SCENES.items()]
+    if args.kinds:
+        scenes += [(label, common.REPO / "runs" / base, over)
+                   for label, (base, over) in KIND_SCENES.items()]
     with tempfile.TemporaryDirectory() as tmp:
-        for label, (base, over) in SCENES.items():
-            path = patched(args.scene, over, Path(tmp) / f"{base}.nml")
+        for i, (label, scene, over) in enumerate(scenes):
+            path = patched(scene, over, Path(tmp) / f"scene{i}.nml")
             ta, tb, ca, cb = [], [], [], []
             for k in range(args.repeat):
                 for exe, t, c, tag in ((args.a, ta, ca, "a"), (args.b, tb, cb, "b")):

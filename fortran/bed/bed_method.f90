@@ -5,7 +5,7 @@
 module bed_method
   use kinds, only: dp, i8
   use errors, only: status_t, set_error, exit_ok
-  use method, only: method_t, fname_len, max_out_files, add_output
+  use method, only: method_t, fname_len, max_out_files
   use ckpt, only: ckpt_writer_t, ckpt_put
   use start_file, only: start_json, check_start_crc
   use, intrinsic :: iso_fortran_env, only: int8
@@ -15,7 +15,8 @@ module bed_method
   use scene, only: scene_keys
   use pair_table, only: table_json
   use schema, only: schema_t
-  use output, only: output_open, output_close, output_flush, output_names, frames_name
+  use output, only: output_declare
+  use output_set, only: frames_as
   use checkpoint, only: checkpoint_save, checkpoint_restore
   implicit none
   private
@@ -25,7 +26,7 @@ module bed_method
   type, extends(method_t) :: bed_t
     type(sim_t) :: sim
   contains
-    procedure :: load, keys, open_outputs, advance, finish, close_outputs, output_files
+    procedure :: load, keys, setup, open_outputs, advance, finish, close_outputs, output_files
     procedure :: save_state, restore_state, counters, progress_text, json_fields
   end type bed_t
 
@@ -39,9 +40,23 @@ contains
     type(status_t), intent(inout) :: st
     call sim_load(self%sim, path, st)
     if (st%code /= 0) return
-    self%checkpoint_every = self%sim%sc%checkpoint_every
-    self%progress_every = self%sim%sc%progress_every
+    call self%setup(path, st)
   end subroutine load
+
+  !> After the engine's load: the runner's cadences and the outputs.
+  subroutine setup(self, path, st)
+    class(bed_t), intent(inout) :: self
+    character(len=*), intent(in) :: path
+    type(status_t), intent(inout) :: st
+    associate (sc => self%sim%sc)
+      self%checkpoint_every = sc%checkpoint_every
+      self%progress_every = sc%progress_every
+      call output_declare(self%sim%o, self%sim%m, sc%piston_every > 0, &
+           frames_as(int(sc%frame_every, i8), sc%frames_format, 'text'), sc%distance_every > 0, &
+           sc%energy_every > 0, frames_as(int(sc%frame_every, i8), sc%frames_format, 'binary'), &
+           self%sim%s%n)
+    end associate
+  end subroutine setup
 
   !> The bed's scene declaration (module scene), bound to this run's scene.
   subroutine keys(self, s)
@@ -63,11 +78,8 @@ contains
     character(len=*), intent(in) :: dir
     logical, intent(in) :: append
     type(status_t), intent(inout) :: st
-    associate (sc => self%sim%sc)
-      call output_open(self%sim%o, dir, self%sim%m, sc%piston_every > 0, text_frames(self), &
-           sc%distance_every > 0, sc%energy_every > 0, append, st, binary_frames(self), &
-           self%sim%s%n)
-    end associate
+    self%sim%o%st = status_t()
+    call self%sim%o%set%open(dir, append, st)
     if (st%code /= 0) return
     self%sim%writing = .true.
     self%writing = .true.
@@ -91,9 +103,9 @@ contains
     class(bed_t), intent(inout) :: self
     logical, intent(in) :: flush_only
     type(status_t), intent(inout) :: st
-    call output_flush(self%sim%o)
+    call self%sim%o%set%flush(st)
     if (.not. flush_only) then
-      call output_close(self%sim%o)
+      call self%sim%o%set%close(st)
       self%sim%writing = .false.
       self%writing = .false.
     end if
@@ -104,27 +116,8 @@ contains
     class(bed_t), intent(in) :: self
     character(len=fname_len), intent(out) :: names(max_out_files)
     integer, intent(out) :: n
-    names = ''
-    n = 0
-    associate (sc => self%sim%sc)
-      call add_output(names, n, sc%piston_every > 0, output_names(1))
-      call add_output(names, n, text_frames(self), output_names(2))
-      call add_output(names, n, sc%distance_every > 0, output_names(3))
-      call add_output(names, n, sc%energy_every > 0, output_names(4))
-      call add_output(names, n, binary_frames(self), frames_name)
-    end associate
+    call self%sim%o%set%names(names, n)
   end subroutine output_files
-
-  !> Frames as text (particles.dat) / binary (particles.bin): &output frames_format.
-  logical function text_frames(self)
-    class(bed_t), intent(in) :: self
-    text_frames = self%sim%sc%frame_every > 0 .and. trim(self%sim%sc%frames_format) /= 'binary'
-  end function text_frames
-
-  logical function binary_frames(self)
-    class(bed_t), intent(in) :: self
-    binary_frames = self%sim%sc%frame_every > 0 .and. trim(self%sim%sc%frames_format) /= 'text'
-  end function binary_frames
 
   !> The MD payload, then the CRC-64 of the start file (0 without one): a resume refuses a
   !> start file that changed since the run began (the scene names it, its bytes are bound).

@@ -19,8 +19,9 @@
 !> H + k R (a torn last record) is refused by the reader, never padded. A
 !> numpy reader maps it as np.memmap(path, dtype=record_dtype, offset=H).
 !>
-!> Interface for a method (the runner does checkpoints, resume cut-back and
-!> run.json; the method lists the file in its output_files):
+!> Interface (a method registers the file in its output set, module output_set,
+!> which opens, flushes, closes and lists it; the runner does checkpoints,
+!> resume cut-back and run.json):
 !>   type(frames_t) :: fr
 !>   call frames_open(fr, dir//'/particles.bin', n, names, units, dtypes, 'step', 'T', &
 !>        meta, append, st)      ! names/units/dtypes: one per column, dtype 'i4' | 'f8'

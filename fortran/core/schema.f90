@@ -80,6 +80,7 @@ module schema
   contains
     procedure :: init
     procedure :: group => add_group
+    procedure :: scene_group
     generic :: key => key_scalar, key_array
     procedure, private :: key_scalar, key_array
     procedure :: read => schema_read
@@ -134,6 +135,16 @@ contains
     s%groups(s%ng)%doc = doc
     if (present(required)) s%groups(s%ng)%required = required
   end subroutine add_group
+
+  !> The group every kind opens with: &scene kind (this schema's kind only) and title,
+  !> bound to the method's `kind` and `title`.
+  subroutine scene_group(s, kind, title)
+    class(schema_t), intent(inout) :: s
+    character(len=*), intent(inout), target :: kind, title
+    call s%group('scene', 'what this scene is', required=.true.)
+    call s%key('kind', kind, '', 'the method and system of this scene', choices=s%kind)
+    call s%key('title', title, '', 'free text (UTF-8)')
+  end subroutine scene_group
 
   !> A new key in the current group (common part of every key_* procedure).
   function new_key(s, name, type, n, unit, doc) result(k)

@@ -17,8 +17,9 @@
 module dsmc_rods
   use kinds, only: dp, i8, pi
   use errors, only: status_t, set_error, exit_bad_input, exit_io, exit_numerical
-  use method, only: method_t, fname_len, max_out_files, add_output
-  use tables, only: table_t, table_open, table_line, table_flush, table_close, rfmt
+  use method, only: method_t
+  use tables, only: rfmt
+  use output_set, only: due
   use ckpt, only: ckpt_writer_t, ckpt_put
   use, intrinsic :: iso_fortran_env, only: int8
   use scene_input, only: kind_len, int_str, real_str
@@ -68,14 +69,14 @@ module dsmc_rods
     type(collision_t) :: law
     real(dp), allocatable :: v(:, :), theta(:), omega(:), u(:), de(:)
     integer(i8), allocatable :: perm(:)
-    integer(i8) :: step = 0, n_steps = 0, n_collisions = 0, nc = 0
+    integer(i8) :: n_collisions = 0, nc = 0           !< (step, n_steps: method_t's)
     real(dp) :: e_lost = 0.0_dp        !< energy lost in collisions per sample (formula)
     real(dp) :: audit_de = 0.0_dp, audit_dp = 0.0_dp
-    type(table_t) :: hist, histo, samp
+    integer :: hist = 0, histo = 0, samp = 0          !< output ids (0: off)
   contains
-    procedure :: load, keys, open_outputs, advance, finish, close_outputs
-    procedure :: output_files
-    procedure :: save_state, restore_state, counters, progress_text, json_fields
+    procedure :: keys, resolve, setup, advance, finish
+    procedure :: rules => validate
+    procedure :: save_state, restore_state, progress_text, json_fields
   end type rods_t
 
 contains
@@ -87,9 +88,7 @@ contains
     type(schema_t), intent(inout) :: s
     call s%init('rods', 'kind rods (space-homogeneous DSMC). Units: mass m, length L, '// &
          'time t0; energies m L^2/t0^2.')
-    call s%group('scene', 'what this scene is', required=.true.)
-    call s%key('kind', self%kind, '', 'the method and system of this scene', choices='rods')
-    call s%key('title', self%title, '', 'free text (UTF-8)')
+    call s%scene_group(self%kind, self%title)
     call s%group('rods', 'the samples, their initial law and the step')
     call s%key('n', self%n, '', 'samples (rods)', lo=2_i8, hi=200000000_i8)
     call s%key('m', self%m, 'm', 'mass of a rod', lo=0.0_dp, lo_open=.true., hi=1.0e6_dp)
@@ -161,34 +160,49 @@ contains
          'balance against the formula (history.dat audit_dE, audit_dp)')
   end subroutine keys
 
-  !> Read, resolve (thin_rod inertia), validate and build the initial state.
-  subroutine load(self, path, st)
-    class(rods_t), intent(inout), target :: self
+  !> inertia_model = 'thin_rod': the inertia of a thin rod, m length^2/12.
+  subroutine resolve(self)
+    class(rods_t), intent(inout) :: self
+    if (trim(self%inertia_model) == 'thin_rod') self%inertia = self%m*self%length**2/12.0_dp
+  end subroutine resolve
+
+  !> The mean field's and the collision law's parameters, the pair count, the
+  !> initial state and the outputs.
+  subroutine setup(self, path, st)
+    class(rods_t), intent(inout) :: self
     character(len=*), intent(in) :: path
     type(status_t), intent(inout) :: st
-    type(schema_t) :: s
-    call self%keys(s)
-    call s%read(path, st)
-    if (st%code /= 0) return
-    if (trim(self%inertia_model) == 'thin_rod') self%inertia = self%m*self%length**2/12.0_dp
-    call s%validate(path, st)
-    if (st%code /= 0) return
-    call validate(self, path, st)
-    if (st%code /= 0) return
+    character(len=*), parameter :: units = ' Units: mass m, length L, time t0; '// &
+         'E = m L^2/t0^2 (per sample).'
     self%field%modes = int(self%fourier_modes)
     self%field%bins = int(self%onsager_bins)
     self%field%inertia = self%inertia
     self%field%length = self%length
     self%law = collision_t(self%m, self%inertia, self%length, self%e_v, self%e_w, self%rotation)
     self%n_steps = nint(self%t_end/self%dt, i8)
+    self%time_unit = self%dt
     self%nc = 0
     if (self%collisions) self%nc = pair_count(self%n, self%dt, self%tau)
     call initial_state(self)
-  end subroutine load
+    call self%out%table(self%hist, 'history.dat', &
+         '# history.dat: DSMC rods, moments per sample.'//units, &
+         '# step t[t0] T_trans[E] T_rot[E] T[E] E_kin[E] E_int[E] E_total[E] E_lost[E] '// &
+         'px[mL/t0] py[mL/t0] spin[mL^2/t0] S1[1] S2[1] M4[L^4/t0^4] H[1] collisions[1] audit_dE[1] '// &
+         'audit_dp[1]', on=self%history_every > 0)
+    call self%out%table(self%histo, 'histograms.dat', &
+         '# histograms.dat: densities of v_x, v_y, |v|, theta (wrapped to [-pi, pi)), omega '// &
+         'per snapshot.'//units, &
+         '# step t[t0] bin vx[L/t0] f_vx[t0/L] vy[L/t0] f_vy[t0/L] speed[L/t0] f_speed[t0/L] '// &
+         'theta[rad] f_theta[1/rad] omega[rad/t0] f_omega[t0/rad]', on=self%histogram_every > 0)
+    call self%out%table(self%samp, 'samples.dat', &
+         '# samples.dat: every sample per snapshot (theta not wrapped).'//units, &
+         '# step t[t0] id vx[L/t0] vy[L/t0] theta[rad] omega[rad/t0]', on=self%samples_every > 0)
+  end subroutine setup
 
   !> Rules across keys (each key's own range is the declaration's, checked before).
-  subroutine validate(self, path, st)
-    class(rods_t), intent(in) :: self
+  subroutine validate(self, s, path, st)
+    class(rods_t), intent(inout) :: self
+    type(schema_t), intent(in) :: s
     character(len=*), intent(in) :: path
     type(status_t), intent(inout) :: st
     if (self%dt > self%t_end .or. self%t_end/self%dt > real(max_steps_all, dp)) then
@@ -276,40 +290,6 @@ contains
     self%e_lost = 0.0_dp
   end subroutine initial_state
 
-  subroutine open_outputs(self, dir, append, st)
-    class(rods_t), intent(inout) :: self
-    character(len=*), intent(in) :: dir
-    logical, intent(in) :: append
-    type(status_t), intent(inout) :: st
-    character(len=*), parameter :: units = ' Units: mass m, length L, time t0; '// &
-         'E = m L^2/t0^2 (per sample).'
-    if (self%history_every > 0) call table_open(self%hist, dir, 'history.dat', &
-         '# history.dat: DSMC rods, moments per sample.'//units, &
-         '# step t[t0] T_trans[E] T_rot[E] T[E] E_kin[E] E_int[E] E_total[E] E_lost[E] '// &
-         'px[mL/t0] py[mL/t0] spin[mL^2/t0] S1[1] S2[1] M4[L^4/t0^4] H[1] collisions[1] audit_dE[1] '// &
-         'audit_dp[1]', append, st)
-    if (self%histogram_every > 0) call table_open(self%histo, dir, 'histograms.dat', &
-         '# histograms.dat: densities of v_x, v_y, |v|, theta (wrapped to [-pi, pi)), omega '// &
-         'per snapshot.'//units, &
-         '# step t[t0] bin vx[L/t0] f_vx[t0/L] vy[L/t0] f_vy[t0/L] speed[L/t0] f_speed[t0/L] '// &
-         'theta[rad] f_theta[1/rad] omega[rad/t0] f_omega[t0/rad]', append, st)
-    if (self%samples_every > 0) call table_open(self%samp, dir, 'samples.dat', &
-         '# samples.dat: every sample per snapshot (theta not wrapped).'//units, &
-         '# step t[t0] id vx[L/t0] vy[L/t0] theta[rad] omega[rad/t0]', append, st)
-    self%writing = st%code == 0
-  end subroutine open_outputs
-
-  subroutine output_files(self, names, n)
-    class(rods_t), intent(in) :: self
-    character(len=fname_len), intent(out) :: names(max_out_files)
-    integer, intent(out) :: n
-    n = 0
-    names = ''
-    call add_output(names, n, self%history_every > 0, 'history.dat')
-    call add_output(names, n, self%histogram_every > 0, 'histograms.dat')
-    call add_output(names, n, self%samples_every > 0, 'samples.dat')
-  end subroutine output_files
-
   subroutine write_rows(self, last, st)
     class(rods_t), intent(inout) :: self
     logical, intent(in) :: last
@@ -322,18 +302,18 @@ contains
     character(len=600) :: line
     if (.not. self%writing) return
     t = real(self%step, dp)*self%dt
-    if (due(self%history_every)) then
+    if (due(self%history_every, self%step, last)) then
       mo = sample_moments(self%m, self%inertia, self%rotation, self%v, self%theta, self%omega)
       eint = interaction_energy(self%field, self%theta)
       h = h_estimate(int(self%entropy_bins), self%v_max, self%omega_max, self%v, self%omega)
       write(line, '(i0,15(1x,'//rfmt//'),1x,i0,2(1x,'//rfmt//'))') self%step, t, mo%t_trans, mo%t_rot, mo%t_all, mo%e_kin, eint, &
            mo%e_kin + eint, self%e_lost, mo%px, mo%py, mo%spin, mo%s1, mo%s2, mo%m4, h, &
            self%n_collisions, self%audit_de, self%audit_dp
-      call table_line(self%hist, trim(line), st)
+      call self%out%line(self%hist, trim(line), st)
       self%audit_de = 0.0_dp
       self%audit_dp = 0.0_dp
     end if
-    if (due(self%histogram_every)) then
+    if (due(self%histogram_every, self%step, last)) then
       nb = int(self%bins)
       fx = histogram(self%v(1, :), -self%v_max, self%v_max, nb)
       fy = histogram(self%v(2, :), -self%v_max, self%v_max, nb)
@@ -344,22 +324,17 @@ contains
         write(line, '(i0,1x,'//rfmt//',1x,i0,10(1x,'//rfmt//'))') self%step, t, b, centre(-self%v_max, self%v_max), fx(b), &
              centre(-self%v_max, self%v_max), fy(b), centre(0.0_dp, self%v_max), fs(b), &
              centre(-pi, pi), ft(b), centre(-self%omega_max, self%omega_max), fw(b)
-        call table_line(self%histo, trim(line), st)
+        call self%out%line(self%histo, trim(line), st)
       end do
     end if
-    if (due(self%samples_every)) then
+    if (due(self%samples_every, self%step, last)) then
       do i = 1, self%n
         write(line, '(i0,1x,'//rfmt//',1x,i0,4(1x,'//rfmt//'))') self%step, t, i, &
              self%v(:, i), self%theta(i), self%omega(i)
-        call table_line(self%samp, trim(line), st)
+        call self%out%line(self%samp, trim(line), st)
       end do
     end if
   contains
-    logical function due(every)
-      integer(i8), intent(in) :: every
-      due = every > 0
-      if (due) due = last .or. mod(self%step, every) == 0
-    end function due
     real(dp) function centre(lo, hi)
       real(dp), intent(in) :: lo, hi
       centre = lo + (real(b, dp) - 0.5_dp)*(hi - lo)/real(self%bins, dp)
@@ -422,20 +397,6 @@ contains
     call write_rows(self, .true., st)
   end subroutine finish
 
-  subroutine close_outputs(self, flush_only, st)
-    class(rods_t), intent(inout) :: self
-    logical, intent(in) :: flush_only
-    type(status_t), intent(inout) :: st
-    call table_flush(self%hist, st)
-    call table_flush(self%histo, st)
-    call table_flush(self%samp, st)
-    if (flush_only) return
-    call table_close(self%hist, st)
-    call table_close(self%histo, st)
-    call table_close(self%samp, st)
-    self%writing = .false.
-  end subroutine close_outputs
-
   !> Payload: N, step, counters, generator state, samples, permutation.
   subroutine save_state(self, w)
     class(rods_t), intent(in) :: self
@@ -478,15 +439,6 @@ contains
     if (ios == 0) call random_seed(put=rng)
     if (ios /= 0) call set_error(st, exit_io, 'checkpoint payload does not match the scene')
   end subroutine restore_state
-
-  subroutine counters(self, done, total, t)
-    class(rods_t), intent(in) :: self
-    integer(i8), intent(out) :: done, total
-    real(dp), intent(out) :: t
-    done = self%step
-    total = self%n_steps
-    t = real(self%step, dp)*self%dt
-  end subroutine counters
 
   function progress_text(self) result(s)
     class(rods_t), intent(in) :: self

@@ -13,10 +13,10 @@
 module edmd_dla
   use kinds, only: dp, i8, pi
   use errors, only: status_t, set_error, exit_bad_input, exit_io
-  use method, only: method_t, fname_len, max_out_files, add_output
-  use tables, only: table_t, table_open, table_line, table_flush, table_close, rfmt
-  use frames, only: frames_t, frames_open, frames_begin, frames_put, frames_end, frames_flush, &
-       frames_close, json_real
+  use method, only: method_t, open_default
+  use tables, only: rfmt
+  use frames, only: json_real
+  use output_set, only: due, frames_as
   use ckpt, only: ckpt_writer_t, ckpt_put
   use, intrinsic :: iso_fortran_env, only: int8
   use scene_input, only: kind_len, check_real, check_int, int_str, real_str
@@ -68,18 +68,16 @@ module edmd_dla
     integer(i8) :: check_every = 1
     logical :: log_events = .false.
     character(len=name_len) :: frames_format = 'text'   !< frames.dat | 'binary': frames.bin | 'both'
-    ! state
+    ! state (step, n_steps: ticks done and in the run, method_t's)
     type(ed_t) :: s
-    integer(i8) :: step = 0                           !< ticks done
-    integer(i8) :: n_ticks = 0
     real(dp) :: t_hist = 0                            !< time of the last history row [tau]
     integer :: n_members = 0                          !< aggregate rows written
     real(dp) :: seconds = 0                           !< CPU time in the event loop [s] (not state)
-    type(table_t) :: frames, history, aggregate, events
-    type(frames_t) :: frames_bin
+    integer :: frames = 0, history = 0, aggregate = 0, events = 0, frames_bin = 0  !< output ids
   contains
-    procedure :: load, keys, open_outputs, advance, finish, close_outputs, output_files
-    procedure :: save_state, restore_state, counters, progress_text, json_fields
+    procedure :: keys, resolve, setup, open_outputs, advance, finish
+    procedure :: rules => validate
+    procedure :: save_state, restore_state, progress_text, json_fields
   end type dla_t
 
   !> columns of frames.dat and frames.bin after tick and t
@@ -98,9 +96,7 @@ contains
     class(dla_t), intent(inout), target :: self
     type(schema_t), intent(inout) :: s
     call s%init('dla', 'kind dla (every key). '//units)
-    call s%group('scene', 'what this scene is', required=.true.)
-    call s%key('kind', self%kind, '', 'the method and system of this scene', choices='dla')
-    call s%key('title', self%title, '', 'free text (UTF-8)')
+    call s%scene_group(self%kind, self%title)
     call s%group('box', 'the closed box [0, lx] x [0, ly]')
     call s%key('lx', self%lx, 'L', 'box side along x', lo=0.0_dp, lo_open=.true., hi=1.0e9_dp)
     call s%key('ly', self%ly, 'L', 'box side along y', lo=0.0_dp, lo_open=.true., hi=1.0e9_dp)
@@ -166,28 +162,56 @@ contains
          'frames.bin, both', choices='text|binary|both')
   end subroutine keys
 
-  !> Read, resolve (seed_x, seed_y < 0: the box centre), validate, build the initial state.
-  subroutine load(self, path, st)
-    class(dla_t), intent(inout), target :: self
+  !> seed_x, seed_y < 0: the box centre.
+  subroutine resolve(self)
+    class(dla_t), intent(inout) :: self
+    if (self%seed_x < 0) self%seed_x = 0.5_dp*self%lx
+    if (self%seed_y < 0) self%seed_y = 0.5_dp*self%ly
+  end subroutine resolve
+
+  !> The tick count, the initial state and the outputs.
+  subroutine setup(self, path, st)
+    class(dla_t), intent(inout) :: self
     character(len=*), intent(in) :: path
     type(status_t), intent(inout) :: st
-    type(schema_t) :: s
-    call self%keys(s)
-    call s%read(path, st)
-    if (st%code /= 0) return
-    if (self%seed_x < 0) self%seed_x = 0.5_dp*self%lx   ! < 0: the box centre
-    if (self%seed_y < 0) self%seed_y = 0.5_dp*self%ly
-    call s%validate(path, st)
-    if (st%code /= 0) return
-    call validate(self, path, st)
-    if (st%code /= 0) return
-    self%n_ticks = nint(self%t_end/self%tick, i8)
+    self%n_steps = nint(self%t_end/self%tick, i8)
+    self%time_unit = self%tick
     call initial_state(self, st)
-  end subroutine load
+    if (st%code /= 0) return
+    call self%out%table(self%frames, 'frames.dat', &
+         '# frames.dat: disks at fixed times (exact interpolation between events); state 0 '// &
+         'free, 1 stuck, 2 seed; m = 0 for the seed (static). '//units, &
+         '# tick t[tau] id x[L] y[L] vx[L/tau] vy[L/tau] r[L] m[M] state[1]', &
+         on=frames_as(self%frame_every, self%frames_format, 'text'))
+    call self%out%table(self%history, 'history.dat', &
+         '# history.dat: cumulative event counts, free disks (all; free_sticky: those of '// &
+         'sticky species), kinetic energy, momentum of the '// &
+         'free disks; pressures over the interval since the previous row (0 on the first): '// &
+         'P_virial = (E_kin + sum r_ij.dp_i / (2 dt)) / A, P_wall = sum of each wall hit''s '// &
+         '|dp| / (2 (lx + ly - 4 r_i) dt) (the perimeter its centre reaches). '//units, &
+         '# tick t[tau] events[1] pair[1] wall[1] stick[1] bounce[1] cross[1] free[1] '// &
+         'E_kin[E] px[M*L/tau] py[M*L/tau] P_virial[E/L^2] P_wall[E/L^2] free_sticky[1]', &
+         on=self%history_every > 0)
+    call self%out%table(self%aggregate, 'aggregate.dat', &
+         '# aggregate.dat: members in the order they stuck (member 0 = seed); parent = the '// &
+         'disk id it stuck to (a tree); event = physical event number; vx, vy = its velocity '// &
+         'when it stuck (0 for the seed). '//units, &
+         '# member[1] id[1] x[L] y[L] r[L] t_stick[tau] event[1] parent[1] vx[L/tau] '// &
+         'vy[L/tau]', on=self%sticking)
+    call self%out%table(self%events, 'events.dat', &
+         '# events.dat: every physical event; type 1 pair, 2 wall (j = -wall: 1 x-, 2 x+, '// &
+         '3 y-, 4 y+), 4 stick, 5 bounce off the aggregate. '//units, &
+         '# event[1] t[tau] type[1] i[1] j[1]', on=self%log_events)
+    call self%out%frames(self%frames_bin, 'frames.bin', self%s%n, frame_cols, frame_units, &
+         ['i4', 'f8', 'f8', 'f8', 'f8', 'f8', 'f8', 'i4'], 'tick', 'tau', '"kind": "dla", '// &
+         '"box": ['//json_real(self%lx)//', '//json_real(self%ly)//']', &
+         on=frames_as(self%frame_every, self%frames_format, 'binary'))
+  end subroutine setup
 
   !> Rules across keys (each key's own range is the declaration's, checked before).
-  subroutine validate(self, path, st)
-    class(dla_t), intent(in) :: self
+  subroutine validate(self, s, path, st)
+    class(dla_t), intent(inout) :: self
+    type(schema_t), intent(in) :: s
     character(len=*), intent(in) :: path
     type(status_t), intent(inout) :: st
     integer :: ns
@@ -444,68 +468,18 @@ contains
     self%n_members = 0
   end subroutine initial_state
 
+  !> The outputs (method_t's default), then on a fresh start the seed's aggregate row.
   subroutine open_outputs(self, dir, append, st)
     class(dla_t), intent(inout) :: self
     character(len=*), intent(in) :: dir
     logical, intent(in) :: append
     type(status_t), intent(inout) :: st
-    if (binary_frames(self)) call frames_open(self%frames_bin, trim(dir)//'/frames.bin', &
-         self%s%n, frame_cols, frame_units, ['i4', 'f8', 'f8', 'f8', 'f8', 'f8', 'f8', 'i4'], &
-         'tick', 'tau', '"kind": "dla", "box": ['//json_real(self%lx)//', '// &
-         json_real(self%ly)//']', append, st)
-    if (text_frames(self)) call table_open(self%frames, dir, 'frames.dat', &
-         '# frames.dat: disks at fixed times (exact interpolation between events); state 0 '// &
-         'free, 1 stuck, 2 seed; m = 0 for the seed (static). '//units, &
-         '# tick t[tau] id x[L] y[L] vx[L/tau] vy[L/tau] r[L] m[M] state[1]', append, st)
-    if (self%history_every > 0) call table_open(self%history, dir, 'history.dat', &
-         '# history.dat: cumulative event counts, free disks (all; free_sticky: those of '// &
-         'sticky species), kinetic energy, momentum of the '// &
-         'free disks; pressures over the interval since the previous row (0 on the first): '// &
-         'P_virial = (E_kin + sum r_ij.dp_i / (2 dt)) / A, P_wall = sum of each wall hit''s '// &
-         '|dp| / (2 (lx + ly - 4 r_i) dt) (the perimeter its centre reaches). '//units, &
-         '# tick t[tau] events[1] pair[1] wall[1] stick[1] bounce[1] cross[1] free[1] '// &
-         'E_kin[E] px[M*L/tau] py[M*L/tau] P_virial[E/L^2] P_wall[E/L^2] free_sticky[1]', &
-         append, st)
-    if (self%sticking) call table_open(self%aggregate, dir, 'aggregate.dat', &
-         '# aggregate.dat: members in the order they stuck (member 0 = seed); parent = the '// &
-         'disk id it stuck to (a tree); event = physical event number; vx, vy = its velocity '// &
-         'when it stuck (0 for the seed). '//units, &
-         '# member[1] id[1] x[L] y[L] r[L] t_stick[tau] event[1] parent[1] vx[L/tau] '// &
-         'vy[L/tau]', append, st)
-    if (self%log_events) call table_open(self%events, dir, 'events.dat', &
-         '# events.dat: every physical event; type 1 pair, 2 wall (j = -wall: 1 x-, 2 x+, '// &
-         '3 y-, 4 y+), 4 stick, 5 bounce off the aggregate. '//units, &
-         '# event[1] t[tau] type[1] i[1] j[1]', append, st)
-    self%writing = st%code == 0
+    call open_default(self, dir, append, st)
     if (st%code /= 0 .or. append) return
     if (self%sticking .and. self%s%state(1) == state_seed) then
       call member_row(self, 1, st)
     end if
   end subroutine open_outputs
-
-  subroutine output_files(self, names, n)
-    class(dla_t), intent(in) :: self
-    character(len=fname_len), intent(out) :: names(max_out_files)
-    integer, intent(out) :: n
-    n = 0
-    names = ''
-    call add_output(names, n, text_frames(self), 'frames.dat')
-    call add_output(names, n, self%history_every > 0, 'history.dat')
-    call add_output(names, n, self%sticking, 'aggregate.dat')
-    call add_output(names, n, self%log_events, 'events.dat')
-    call add_output(names, n, binary_frames(self), 'frames.bin')
-  end subroutine output_files
-
-  !> Frames as text (frames.dat) / binary (frames.bin): &output frames_format.
-  logical function text_frames(self)
-    class(dla_t), intent(in) :: self
-    text_frames = self%frame_every > 0 .and. trim(self%frames_format) /= 'binary'
-  end function text_frames
-
-  logical function binary_frames(self)
-    class(dla_t), intent(in) :: self
-    binary_frames = self%frame_every > 0 .and. trim(self%frames_format) /= 'text'
-  end function binary_frames
 
   !> One frame at time t [tau] (positions interpolated exactly between events).
   subroutine frame_rows(self, t, st)
@@ -519,29 +493,31 @@ contains
     do i = 1, self%s%n
       p(:, i) = ed_position(self%s, i, t)
     end do
-    if (binary_frames(self)) then
-      call frames_begin(self%frames_bin, self%step, t, st)
-      call frames_put(self%frames_bin, [(i, i = 1, self%s%n)], st)
-      call frames_put(self%frames_bin, p(1, :), st)
-      call frames_put(self%frames_bin, p(2, :), st)
-      ! copies of the record components (a component section given to transfer reads whole
-      ! records with gfortran 12)
-      c = self%s%d%vx
-      call frames_put(self%frames_bin, c, st)
-      c = self%s%d%vy
-      call frames_put(self%frames_bin, c, st)
-      c = self%s%d%r
-      call frames_put(self%frames_bin, c, st)
-      call frames_put(self%frames_bin, self%s%m, st)
-      call frames_put(self%frames_bin, self%s%state, st)
-      call frames_end(self%frames_bin, st)
+    if (self%frames_bin > 0) then
+      associate (o => self%out, b => self%frames_bin)
+        call o%frame_begin(b, self%step, t, st)
+        call o%frame_put(b, [(i, i = 1, self%s%n)], st)
+        call o%frame_put(b, p(1, :), st)
+        call o%frame_put(b, p(2, :), st)
+        ! copies of the record components (a component section given to transfer reads whole
+        ! records with gfortran 12)
+        c = self%s%d%vx
+        call o%frame_put(b, c, st)
+        c = self%s%d%vy
+        call o%frame_put(b, c, st)
+        c = self%s%d%r
+        call o%frame_put(b, c, st)
+        call o%frame_put(b, self%s%m, st)
+        call o%frame_put(b, self%s%state, st)
+        call o%frame_end(b, st)
+      end associate
     end if
-    if (.not. text_frames(self)) return
+    if (self%frames == 0) return
     do i = 1, self%s%n
       write(line, '(i0,1x,'//rfmt//',1x,i0,6(1x,'//rfmt//'),1x,i0)') &
            self%step, t, i, p(:, i), self%s%d(i)%vx, self%s%d(i)%vy, self%s%d(i)%r, self%s%m(i), &
            self%s%state(i)
-      call table_line(self%frames, trim(line), st)
+      call self%out%line(self%frames, trim(line), st)
     end do
   end subroutine frame_rows
 
@@ -553,7 +529,7 @@ contains
     write(line, '(i0,1x,i0,4(1x,'//rfmt//'),1x,i0,1x,i0,2(1x,'//rfmt//'))') &
          self%n_members, i, self%s%d(i)%x, self%s%d(i)%y, self%s%d(i)%r, self%s%t_stick(i), &
          self%s%ev_stuck(i), self%s%parent(i), self%s%v_hit(:, i)
-    call table_line(self%aggregate, trim(line), st)
+    call self%out%line(self%aggregate, trim(line), st)
     self%n_members = self%n_members + 1
   end subroutine member_row
 
@@ -574,7 +550,7 @@ contains
         write(line, '(i0,1x,'//rfmt//',3(1x,i0))') &
              self%s%log_no(k), self%s%log_t(k), self%s%log_kind(k), self%s%log_i(k), &
              self%s%log_j(k)
-        call table_line(self%events, trim(line), st)
+        call self%out%line(self%events, trim(line), st)
       end do
     end if
     self%s%n_log = 0
@@ -588,10 +564,10 @@ contains
     real(dp) :: t, dt, area, pv, pw, ek, mom(2)
     character(len=400) :: line
     t = real(self%step, dp)*self%tick
-    if (due(self%check_every)) call ed_check_overlaps(self%s, t, st)
+    if (due(self%check_every, self%step, last)) call ed_check_overlaps(self%s, t, st)
     if (st%code /= 0 .or. .not. self%writing) return
-    if (due(self%frame_every)) call frame_rows(self, t, st)
-    if (due(self%history_every)) then
+    if (due(self%frame_every, self%step, last)) call frame_rows(self, t, st)
+    if (due(self%history_every, self%step, last)) then
       dt = t - self%t_hist
       area = self%lx*self%ly
       ek = ed_kinetic(self%s)
@@ -606,17 +582,11 @@ contains
            self%step, t, self%s%n_events, self%s%n_pair, self%s%n_wall, &
            self%s%n_stick, self%s%n_bounce, self%s%n_cross, self%s%n_free, ek, mom, pv, pw, &
            self%s%n_free_sticky
-      call table_line(self%history, trim(line), st)
+      call self%out%line(self%history, trim(line), st)
       self%s%virial = 0
       self%s%wall_impulse = 0
       self%t_hist = t
     end if
-  contains
-    logical function due(every)
-      integer(i8), intent(in) :: every
-      due = every > 0
-      if (due) due = last .or. mod(self%step, every) == 0
-    end function due
   end subroutine write_rows
 
   subroutine advance(self, st)
@@ -633,7 +603,7 @@ contains
     if (st%code /= 0) return
     self%step = self%step + 1
     if (self%stop_when_done .and. self%sticking .and. .not. self%last_bounces .and. &
-         self%s%n_free_sticky == 0) self%n_ticks = self%step     ! every sticky disk is stuck
+         self%s%n_free_sticky == 0) self%n_steps = self%step     ! every sticky disk is stuck
   end subroutine advance
 
   subroutine finish(self, st)
@@ -641,24 +611,6 @@ contains
     type(status_t), intent(inout) :: st
     call write_rows(self, .true., st)
   end subroutine finish
-
-  subroutine close_outputs(self, flush_only, st)
-    class(dla_t), intent(inout) :: self
-    logical, intent(in) :: flush_only
-    type(status_t), intent(inout) :: st
-    call table_flush(self%frames, st)
-    call frames_flush(self%frames_bin, st)
-    call table_flush(self%history, st)
-    call table_flush(self%aggregate, st)
-    call table_flush(self%events, st)
-    if (flush_only) return
-    call table_close(self%frames, st)
-    call frames_close(self%frames_bin, st)
-    call table_close(self%history, st)
-    call table_close(self%aggregate, st)
-    call table_close(self%events, st)
-    self%writing = .false.
-  end subroutine close_outputs
 
   !> Payload: the stored disk states (positions at their own last-event times),
   !> counters, aggregate and accumulators; the calendar is rebuilt on restore
@@ -671,7 +623,7 @@ contains
     integer(i8), allocatable :: coll(:)
     integer, allocatable :: cell(:)
     associate (s => self%s)
-      call ckpt_put(w, [transfer(s%n, b), transfer(self%step, b), transfer(self%n_ticks, b), &
+      call ckpt_put(w, [transfer(s%n, b), transfer(self%step, b), transfer(self%n_steps, b), &
            transfer(self%t_hist, b), transfer(self%n_members, b), transfer(s%t, b), &
            transfer(s%n_events, b), transfer(s%n_pair, b), transfer(s%n_wall, b), &
            transfer(s%n_stick, b), transfer(s%n_bounce, b), transfer(s%n_cross, b), &
@@ -711,11 +663,11 @@ contains
     if (ios == 0 .and. n /= self%s%n) ios = 1
     if (ios == 0) allocate(x(2, n), v(2, n), tl(n), coll(n), cell(n))
     associate (s => self%s)
-      if (ios == 0) read(u, iostat=ios) self%step, self%n_ticks, self%t_hist, self%n_members, &
+      if (ios == 0) read(u, iostat=ios) self%step, self%n_steps, self%t_hist, self%n_members, &
            s%t, s%n_events, s%n_pair, s%n_wall, s%n_stick, s%n_bounce, s%n_cross, s%n_stale, &
            s%virial, s%wall_impulse, x, v, tl, s%state, coll, cell, s%parent, &
            s%t_stick, s%ev_stuck
-      if (ios == 0 .and. (self%step < 0 .or. self%step > self%n_ticks)) ios = 1
+      if (ios == 0 .and. (self%step < 0 .or. self%step > self%n_steps)) ios = 1
       if (ios == 0) then
         if (.not. ed_load_cells(s, cell)) ios = 1
       end if
@@ -732,15 +684,6 @@ contains
       call ed_start(s)
     end associate
   end subroutine restore_state
-
-  subroutine counters(self, done, total, t)
-    class(dla_t), intent(in) :: self
-    integer(i8), intent(out) :: done, total
-    real(dp), intent(out) :: t
-    done = self%step
-    total = self%n_ticks
-    t = real(self%step, dp)*self%tick
-  end subroutine counters
 
   function progress_text(self) result(s)
     class(dla_t), intent(in) :: self

@@ -11,10 +11,10 @@
 module lj_box
   use kinds, only: dp, i8
   use errors, only: status_t, set_error, exit_bad_input, exit_io, exit_numerical
-  use method, only: method_t, fname_len, max_out_files, add_output
-  use tables, only: table_t, table_open, table_line, table_flush, table_close, rfmt
-  use frames, only: frames_t, frames_open, frames_begin, frames_put, frames_end, frames_flush, &
-       frames_close, json_real
+  use method, only: method_t
+  use tables, only: rfmt
+  use frames, only: json_real
+  use output_set, only: due, frames_as
   use scene_input, only: kind_len, choice_index, int_str, real_str
   use schema, only: schema_t, max_steps_all
   use ckpt, only: ckpt_writer_t, ckpt_put, file_crc64
@@ -113,11 +113,11 @@ module lj_box
     integer(i8) :: wall_hits = 0
     integer(i8) :: table_crc = 0
     real(dp) :: r2min = 0
-    type(table_t) :: frames, energy, field_out
-    type(frames_t) :: frames_bin
+    integer :: frames = 0, energy = 0, field_out = 0, frames_bin = 0   !< output ids (0: off)
   contains
-    procedure :: load, keys, open_outputs, advance, finish
-    procedure :: close_outputs, output_files, save_state, restore_state, counters
+    procedure :: keys, setup, advance, finish
+    procedure :: rules => validate
+    procedure :: save_state, restore_state, counters
     procedure :: progress_text, json_fields
   end type lj_box_t
 
@@ -130,9 +130,7 @@ contains
     class(lj_box_t), intent(inout), target :: self
     type(schema_t), intent(inout) :: s
     call s%init('lj_box', 'kind lj_box (seed 000). '//units)
-    call s%group('scene', 'what this scene is', required=.true.)
-    call s%key('kind', self%kind, '', 'the method and system of this scene', choices='lj_box')
-    call s%key('title', self%title, '', 'free text (UTF-8)')
+    call s%scene_group(self%kind, self%title)
     call s%group('box', 'the square box [0, L]^2')
     call s%key('l', self%l, 'a', 'side L of the box (> 2 with contact = ''surface'')', &
          lo=0.0_dp, lo_open=.true., hi=1.0e6_dp)
@@ -255,24 +253,18 @@ contains
     end do
   end function join
 
-  !> Read, validate, build the derived quantities and the initial state.
-  subroutine load(self, path, st)
-    class(lj_box_t), intent(inout), target :: self
+  !> After the rules: the derived quantities, the initial state and the outputs.
+  subroutine setup(self, path, st)
+    class(lj_box_t), intent(inout) :: self
     character(len=*), intent(in) :: path
     type(status_t), intent(inout) :: st
-    type(schema_t) :: s
-    call self%keys(s)
-    call s%read(path, st)
-    if (st%code /= 0) return
-    call s%validate(path, st)
-    if (st%code /= 0) return
-    call validate(self, s, path, st)
-    if (st%code /= 0) return
     if (self%progress_every == 0) self%progress_every = max(1_i8, self%steps/200)  ! as stated
     call build(self, st)
     if (st%code /= 0) return
     call initial_state(self, path, st)
-  end subroutine load
+    if (st%code /= 0) return
+    call declare_outputs(self)
+  end subroutine setup
 
   !> The rules across keys (each key's own range is declared in keys).
   subroutine validate(self, s, path, st)
@@ -564,59 +556,28 @@ contains
     end associate
   end subroutine energies
 
-  subroutine open_outputs(self, dir, append, st)
+  !> The outputs of the scene (method_t's out): frames as text and/or binary, energies,
+  !> the field on a grid.
+  subroutine declare_outputs(self)
     class(lj_box_t), intent(inout) :: self
-    character(len=*), intent(in) :: dir
-    logical, intent(in) :: append
-    type(status_t), intent(inout) :: st
-    if (binary_frames(self)) call frames_open(self%frames_bin, trim(dir)//'/frames.bin', &
-         int(self%n), frame_cols, frame_units, ['i4', 'i4', 'f8', 'f8', 'f8', 'f8'], 'step', &
-         'T', '"kind": "lj_box", "box": ['//json_real(self%l)//', '//json_real(self%l)// &
-         '], "radius": 1', append, st)
-    if (text_frames(self)) call table_open(self%frames, dir, 'frames.dat', &
-         '# frames.dat: Lennard-Jones box (seed 000), one row per particle per frame. '// &
-         units, '# step t[T] id type x[a] y[a] vx[a/T] vy[a/T]', append, st)
-    if (self%energy_every > 0) call table_open(self%energy, dir, 'energy.dat', &
+    call self%out%table(self%frames, 'frames.dat', '# frames.dat: Lennard-Jones box (seed '// &
+         '000), one row per particle per frame. '//units, &
+         '# step t[T] id type x[a] y[a] vx[a/T] vy[a/T]', &
+         on=frames_as(self%frame_every, self%frames_format, 'text'))
+    call self%out%frames(self%frames_bin, 'frames.bin', int(self%n), frame_cols, frame_units, &
+         ['i4', 'i4', 'f8', 'f8', 'f8', 'f8'], 'step', 'T', '"kind": "lj_box", "box": ['// &
+         json_real(self%l)//', '//json_real(self%l)//'], "radius": 1', &
+         on=frames_as(self%frame_every, self%frames_format, 'binary'))
+    call self%out%table(self%energy, 'energy.dat', &
          '# energy.dat: energies summed over the particles (u_field 0 for fields '// &
          'without a potential); wall_hits cumulative; r_min the closest listed pair. '// &
          units, '# step t[T] e_kin[mga] u_pair[mga] u_field[mga] wall_hits r_min[a]', &
-         append, st)
-    if (self%field_grid > 0) call table_open(self%field_out, dir, 'field.dat', &
+         on=self%energy_every > 0)
+    call self%out%table(self%field_out, 'field.dat', &
          '# field.dat: F_ext at the cell centres of a field_grid^2 grid over the box, at '// &
          'step 0 and, for a time-dependent field, at every frame. '//units, &
-         '# step t[T] x[a] y[a] fx[mg] fy[mg]', append, st)
-    self%writing = st%code == 0
-  end subroutine open_outputs
-
-  subroutine output_files(self, names, n)
-    class(lj_box_t), intent(in) :: self
-    character(len=fname_len), intent(out) :: names(max_out_files)
-    integer, intent(out) :: n
-    n = 0
-    names = ''
-    call add_output(names, n, text_frames(self), 'frames.dat')
-    call add_output(names, n, binary_frames(self), 'frames.bin')
-    call add_output(names, n, self%energy_every > 0, 'energy.dat')
-    call add_output(names, n, self%field_grid > 0, 'field.dat')
-  end subroutine output_files
-
-  !> Frames as text (frames.dat) / binary (frames.bin): &output frames_format.
-  logical function text_frames(self)
-    class(lj_box_t), intent(in) :: self
-    text_frames = self%frame_every > 0 .and. trim(self%frames_format) /= 'binary'
-  end function text_frames
-
-  logical function binary_frames(self)
-    class(lj_box_t), intent(in) :: self
-    binary_frames = self%frame_every > 0 .and. trim(self%frames_format) /= 'text'
-  end function binary_frames
-
-  logical function due(every, step, last)
-    integer(i8), intent(in) :: every, step
-    logical, intent(in) :: last
-    due = every > 0
-    if (due) due = last .or. mod(step, every) == 0
-  end function due
+         '# step t[T] x[a] y[a] fx[mg] fy[mg]', on=self%field_grid > 0)
+  end subroutine declare_outputs
 
   !> The rows of the current step that are due (forces already computed).
   subroutine write_rows(self, last, st)
@@ -639,23 +600,25 @@ contains
       if (o_frm) then
         allocate(at(s%n))
         at(s%id) = [(k, k = 1, s%n)]          ! rows in particle-id order
-        if (text_frames(self)) then
+        if (self%frames > 0) then
           do k = 1, s%n
             i = at(k)
             write(line, '(i0,1x,'//rfmt//',1x,i0,1x,i0,4(1x,'//rfmt//'))') s%step, s%t, &
                  s%id(i), self%type_id, s%x(i), s%y(i), s%vx(i), s%vy(i)
-            call table_line(self%frames, trim(line), st)
+            call self%out%line(self%frames, trim(line), st)
           end do
         end if
-        if (binary_frames(self)) then
-          call frames_begin(self%frames_bin, s%step, s%t, st)
-          call frames_put(self%frames_bin, [(k, k = 1, s%n)], st)
-          call frames_put(self%frames_bin, [(int(self%type_id), k = 1, s%n)], st)
-          call frames_put(self%frames_bin, s%x(at), st)
-          call frames_put(self%frames_bin, s%y(at), st)
-          call frames_put(self%frames_bin, s%vx(at), st)
-          call frames_put(self%frames_bin, s%vy(at), st)
-          call frames_end(self%frames_bin, st)
+        if (self%frames_bin > 0) then
+          associate (o => self%out, b => self%frames_bin)
+            call o%frame_begin(b, s%step, s%t, st)
+            call o%frame_put(b, [(k, k = 1, s%n)], st)
+            call o%frame_put(b, [(int(self%type_id), k = 1, s%n)], st)
+            call o%frame_put(b, s%x(at), st)
+            call o%frame_put(b, s%y(at), st)
+            call o%frame_put(b, s%vx(at), st)
+            call o%frame_put(b, s%vy(at), st)
+            call o%frame_end(b, st)
+          end associate
         end if
       end if
       if (o_en) then
@@ -664,7 +627,7 @@ contains
         if (self%steric_on) rmin = sqrt(min(self%r2min, (self%r_cut + self%skin)**2))
         write(line, '(i0,4(1x,'//rfmt//'),1x,i0,1x,'//rfmt//')') s%step, s%t, ek, up, uf, &
              self%wall_hits, rmin
-        call table_line(self%energy, trim(line), st)
+        call self%out%line(self%energy, trim(line), st)
       end if
     end associate
   end subroutine write_rows
@@ -688,7 +651,7 @@ contains
     call field_add(self%fl, self%s%t, g*g, gx, gy, fx, fy)
     do k = 1, g*g
       write(line, '(i0,5(1x,'//rfmt//'))') self%s%step, self%s%t, gx(k), gy(k), fx(k), fy(k)
-      call table_line(self%field_out, trim(line), st)
+      call self%out%line(self%field_out, trim(line), st)
     end do
   end subroutine write_field
 
@@ -729,22 +692,6 @@ contains
     call forces(self)
     call write_rows(self, .true., st)
   end subroutine finish
-
-  subroutine close_outputs(self, flush_only, st)
-    class(lj_box_t), intent(inout) :: self
-    logical, intent(in) :: flush_only
-    type(status_t), intent(inout) :: st
-    call table_flush(self%frames, st)
-    call table_flush(self%energy, st)
-    call table_flush(self%field_out, st)
-    call frames_flush(self%frames_bin, st)
-    if (flush_only) return
-    call frames_close(self%frames_bin, st)
-    call table_close(self%frames, st)
-    call table_close(self%energy, st)
-    call table_close(self%field_out, st)
-    self%writing = .false.
-  end subroutine close_outputs
 
   !> The bed's payload (state, integrator history, neighbour list, RNG), then the wall
   !> hits, the field table's and the start file's CRC-64 (a changed file refuses the resume).

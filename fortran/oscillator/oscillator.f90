@@ -14,8 +14,9 @@
 module oscillator
   use kinds, only: dp, i8
   use errors, only: status_t, set_error, exit_bad_input, exit_io, exit_numerical, msg_len
-  use method, only: method_t, fname_len, max_out_files, add_output
-  use tables, only: table_t, table_open, table_line, table_flush, table_close, rfmt
+  use method, only: method_t
+  use tables, only: rfmt
+  use output_set, only: due
   use scene_input, only: kind_len, int_str, real_str
   use schema, only: schema_t, max_steps_all
   use ckpt, only: ckpt_writer_t, ckpt_put
@@ -47,15 +48,14 @@ module oscillator
     ! &output (cadences in steps, 0 = file off)
     integer(i8) :: trajectory_every = 10
     integer(i8) :: energy_every = 10
-    ! state
+    ! state (step, n_steps: method_t's)
     real(dp), allocatable :: x(:), v(:), x0(:), v0(:)
-    integer(i8) :: step = 0
-    integer(i8) :: n_steps = 0
     real(dp) :: e0 = 0                      !< initial energy [L^2/tau^2] (growth guard)
-    type(table_t) :: traj, energy
+    integer :: traj = 0, energy = 0         !< output ids (0: off)
   contains
-    procedure :: load, keys, open_outputs, advance, finish, close_outputs, output_files
-    procedure :: save_state, restore_state, counters, progress_text, json_fields
+    procedure :: keys, setup, advance, finish
+    procedure :: rules => validate
+    procedure :: save_state, restore_state, progress_text, json_fields
   end type oscillator_t
 
 contains
@@ -67,9 +67,7 @@ contains
     type(schema_t), intent(inout) :: s
     call s%init('oscillator', 'kind oscillator. Units: length L, time tau (the user''s '// &
          'choice), unit mass.')
-    call s%group('scene', 'what this scene is', required=.true.)
-    call s%key('kind', self%kind, '', 'the method and system of this scene', choices='oscillator')
-    call s%key('title', self%title, '', 'free text (UTF-8)')
+    call s%scene_group(self%kind, self%title)
     call s%group('oscillator', 'the oscillators and their integration')
     call s%key('n', self%n, '', 'number of oscillators', lo=1_i8, hi=10000000_i8)
     call s%key('omega', self%omega, 'rad/tau', 'natural angular frequency', lo=0.0_dp, &
@@ -95,28 +93,30 @@ contains
          'at step 0)', lo=0_i8, hi=max_steps_all)
   end subroutine keys
 
-  !> Read, validate and build the initial state.
-  subroutine load(self, path, st)
-    class(oscillator_t), intent(inout), target :: self
+  !> The step count, the initial state and the outputs.
+  subroutine setup(self, path, st)
+    class(oscillator_t), intent(inout) :: self
     character(len=*), intent(in) :: path
     type(status_t), intent(inout) :: st
-    type(schema_t) :: s
-    call self%keys(s)
-    call s%read(path, st)
-    if (st%code /= 0) return
-    call s%validate(path, st)
-    if (st%code /= 0) return
-    call validate(self, path, st)
-    if (st%code /= 0) return
+    character(len=*), parameter :: units = 'Units: length L, time tau (omega in rad/tau), unit mass.'
     self%n_steps = nint(self%t_end/self%dt, i8)
+    self%time_unit = self%dt
     call initial_state(self)
     self%e0 = total_energy(self)
-  end subroutine load
+    call self%out%table(self%traj, 'trajectory.dat', &
+         '# trajectory.dat: damped harmonic oscillators. '//units, &
+         '# step t[tau] id x[L] v[L/tau]', on=self%trajectory_every > 0)
+    call self%out%table(self%energy, 'energy.dat', &
+         '# energy.dat: energies summed over the oscillators. '//units, &
+         '# step t[tau] E_kin[L^2/tau^2] E_pot[L^2/tau^2] E_total[L^2/tau^2]', &
+         on=self%energy_every > 0)
+  end subroutine setup
 
   !> Rules across keys: the step count, and the step's stability (the
   !> run must not be accepted to explode: rule 2).
-  subroutine validate(self, path, st)
-    class(oscillator_t), intent(in) :: self
+  subroutine validate(self, s, path, st)
+    class(oscillator_t), intent(inout) :: self
+    type(schema_t), intent(in) :: s
     character(len=*), intent(in) :: path
     type(status_t), intent(inout) :: st
     real(dp) :: wh, growth
@@ -186,31 +186,6 @@ contains
     self%step = 0
   end subroutine initial_state
 
-  subroutine open_outputs(self, dir, append, st)
-    class(oscillator_t), intent(inout) :: self
-    character(len=*), intent(in) :: dir
-    logical, intent(in) :: append
-    type(status_t), intent(inout) :: st
-    character(len=*), parameter :: units = 'Units: length L, time tau (omega in rad/tau), unit mass.'
-    if (self%trajectory_every > 0) call table_open(self%traj, dir, 'trajectory.dat', &
-         '# trajectory.dat: damped harmonic oscillators. '//units, &
-         '# step t[tau] id x[L] v[L/tau]', append, st)
-    if (self%energy_every > 0) call table_open(self%energy, dir, 'energy.dat', &
-         '# energy.dat: energies summed over the oscillators. '//units, &
-         '# step t[tau] E_kin[L^2/tau^2] E_pot[L^2/tau^2] E_total[L^2/tau^2]', append, st)
-    self%writing = st%code == 0
-  end subroutine open_outputs
-
-  subroutine output_files(self, names, n)
-    class(oscillator_t), intent(in) :: self
-    character(len=fname_len), intent(out) :: names(max_out_files)
-    integer, intent(out) :: n
-    n = 0
-    names = ''
-    call add_output(names, n, self%trajectory_every > 0, 'trajectory.dat')
-    call add_output(names, n, self%energy_every > 0, 'energy.dat')
-  end subroutine output_files
-
   !> Rows due at the current step (every `every` steps, and at the last).
   subroutine write_rows(self, last, st)
     class(oscillator_t), intent(inout) :: self
@@ -219,29 +194,26 @@ contains
     integer(i8) :: i
     real(dp) :: t, ek, ep
     character(len=120) :: line
+    logical :: o_traj, o_en
     if (.not. self%writing) return
-    if (due(self%trajectory_every) .or. due(self%energy_every)) call growth_guard(self, st)
+    o_traj = due(self%trajectory_every, self%step, last)
+    o_en = due(self%energy_every, self%step, last)
+    if (o_traj .or. o_en) call growth_guard(self, st)
     if (st%code /= 0) return
     t = real(self%step, dp)*self%dt
-    if (due(self%trajectory_every)) then
+    if (o_traj) then
       do i = 1, self%n
         write(line, '(i0,1x,'//rfmt//',1x,i0,2(1x,'//rfmt//'))') self%step, t, i, self%x(i), &
              self%v(i)
-        call table_line(self%traj, trim(line), st)
+        call self%out%line(self%traj, trim(line), st)
       end do
     end if
-    if (due(self%energy_every)) then
+    if (o_en) then
       ek = 0.5_dp*sum(self%v**2)
       ep = 0.5_dp*self%omega**2*sum(self%x**2)
       write(line, '(i0,4(1x,'//rfmt//'))') self%step, t, ek, ep, ek + ep
-      call table_line(self%energy, trim(line), st)
+      call self%out%line(self%energy, trim(line), st)
     end if
-  contains
-    logical function due(every)
-      integer(i8), intent(in) :: every
-      due = every > 0
-      if (due) due = last .or. mod(self%step, every) == 0
-    end function due
   end subroutine write_rows
 
   !> The energy of a damped oscillator never grows: a numerical energy above
@@ -319,18 +291,6 @@ contains
     call write_rows(self, .true., st)
   end subroutine finish
 
-  subroutine close_outputs(self, flush_only, st)
-    class(oscillator_t), intent(inout) :: self
-    logical, intent(in) :: flush_only
-    type(status_t), intent(inout) :: st
-    call table_flush(self%traj, st)
-    call table_flush(self%energy, st)
-    if (flush_only) return
-    call table_close(self%traj, st)
-    call table_close(self%energy, st)
-    self%writing = .false.
-  end subroutine close_outputs
-
   subroutine save_state(self, w)
     class(oscillator_t), intent(in) :: self
     type(ckpt_writer_t), intent(inout) :: w
@@ -352,15 +312,6 @@ contains
     if (ios == 0 .and. (self%step < 0 .or. self%step > self%n_steps)) ios = 1
     if (ios /= 0) call set_error(st, exit_io, 'checkpoint payload does not match the scene')
   end subroutine restore_state
-
-  subroutine counters(self, done, total, t)
-    class(oscillator_t), intent(in) :: self
-    integer(i8), intent(out) :: done, total
-    real(dp), intent(out) :: t
-    done = self%step
-    total = self%n_steps
-    t = real(self%step, dp)*self%dt
-  end subroutine counters
 
   function progress_text(self) result(s)
     class(oscillator_t), intent(in) :: self
