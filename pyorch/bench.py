@@ -49,10 +49,10 @@ from pyorch import io
 from pyorch.run import Run, run
 from pyorch.scene import Scene
 
-KNOBS = ["neighbour", "r_cut", "skin", "truncation", "tail", "dt", "integrator"]
+KNOBS = ["neighbour", "r_cut", "skin", "truncation", "tail", "dt", "integrator", "pair_eval"]
 BASELINE: dict[str, Any] = {"neighbour": "verlet", "r_cut": 7.13, "skin": 1.0,
                             "truncation": "plain", "tail": "none", "dt": 2.0e-3,
-                            "integrator": "stormer_verlet"}
+                            "integrator": "stormer_verlet", "pair_eval": "exact"}
 REFERENCE: dict[str, Any] = dict(BASELINE, neighbour="all_pairs", dt=5.0e-4)
 
 
@@ -85,11 +85,24 @@ class Setting:
                 parts.append({"frozen": "tail", "linear": "lintail"}[d["tail"]])
         parts += [f"dt{d['dt']:g}", {"stormer_verlet": "SV", "velocity_verlet": "VV",
                                      "euler": "Eu"}[d["integrator"]]]
+        if d["pair_eval"] != BASELINE["pair_eval"]:   # exact rows keep their labels
+            parts.append(str(d["pair_eval"]))
         return "_".join(parts)
 
 
+def pair_eval_choices() -> tuple[str, ...]:
+    """The bed's pair evaluations other than the exact one, as the engine's schema declares
+    them (``&integration pair_eval``): a choice added there joins the grid unchanged."""
+    from pyorch.trade import schema_choices
+
+    return tuple(v for v in schema_choices("magnet_bed", "integration.pair_eval")
+                 if v != BASELINE["pair_eval"])
+
+
 def default_grid(quick: bool = False) -> list[Setting]:
-    """One knob at a time around the baseline, plus corrections at short r_c."""
+    """One knob at a time around the baseline, plus corrections at short r_c; every cheaper
+    pair evaluation on the baseline, on the cheapest accurate list setting (r_c 3 + frozen
+    tail) and on all pairs."""
     if quick:
         return [Setting.of(), Setting.of(neighbour="cells"), Setting.of(r_cut=4.0),
                 Setting.of(dt=4.0e-3)]
@@ -102,6 +115,9 @@ def default_grid(quick: bool = False) -> list[Setting]:
     grid += [Setting.of(integrator="euler", dt=5.0e-4)]
     grid += [Setting.of(r_cut=rc, truncation="shifted_force") for rc in (3.0, 5.0, 7.13)]
     grid += [Setting.of(r_cut=rc, tail="frozen") for rc in (3.0, 5.0, 7.13)]
+    for ev in pair_eval_choices():
+        grid += [Setting.of(pair_eval=ev), Setting.of(r_cut=3.0, tail="frozen", pair_eval=ev),
+                 Setting.of(neighbour="all_pairs", pair_eval=ev)]
     seen: dict[Setting, None] = {}
     for s in grid:
         seen.setdefault(s, None)
@@ -302,6 +318,9 @@ def pareto_plot(table: pd.DataFrame, path: Path, noise: float | None = None) -> 
                    np.where(t["tail"].eq("frozen"), "verlet + frozen tail",
                             np.where(t["truncation"].eq("shifted_force"), "verlet shifted force",
                                      t["neighbour"])))
+    if "pair_eval" in t.columns:          # a cheaper pair evaluation is its own family
+        ev = t["pair_eval"].fillna(BASELINE["pair_eval"]).astype(str)
+        fam = np.where(ev.eq(BASELINE["pair_eval"]), fam, "pair_eval " + ev)
     for name in pd.unique(fam):
         part = t[fam == name]
         ax.scatter(part["time_per_step_s"] * 1e6, part["err_max"].clip(lower=1e-6), label=name, s=25)
@@ -337,10 +356,13 @@ def choose(table: pd.DataFrame, target_rel_error: float) -> pd.Series:
 
 
 def overrides_for(row: pd.Series) -> dict[str, Any]:
-    """Scene overrides reproducing a table row's setting."""
+    """Scene overrides reproducing a table row's setting (a knob a table predates, e.g.
+    pair_eval in a table measured before it existed, is the baseline's value)."""
     out = {}
     for k in KNOBS:
-        v = row[k]
+        v = row.get(k, BASELINE[k])
+        if v is None or (isinstance(v, float) and np.isnan(v)):
+            v = BASELINE[k]
         if isinstance(v, (np.floating, np.integer)):
             v = v.item()
         out[f"integration.{k}"] = v
@@ -412,8 +434,9 @@ class TargetChoice:
         """One line: the choice, its measured error and time; a second one when the target is
         below what the table measured."""
         r = self.row
+        ev = overrides_for(r)["integration.pair_eval"]
         line = (f"target_rel_error {self.target:g}: chose {r['label']} "
-                f"(measured error {r['err_max']:.2e}: {r['source']}; "
+                f"(pair_eval '{ev}'; measured error {r['err_max']:.2e}: {r['source']}; "
                 f"{r['time_per_step_s'] * 1e6:.1f} us/step on the trade scene)")
         if self.below_floor:
             line += (f"\nwarning: target_rel_error {self.target:g} is below every error the table "
@@ -475,7 +498,11 @@ def apply_target(scene: Scene, table_path: Path | None = None,
     """If the scene asks for target_rel_error, return it with the cheapest measured setting
     applied (:func:`target_choice`) and the description of the choice
     (:meth:`TargetChoice.text`: one line, a second one when the target is below what the
-    table measured)."""
+    table measured). A kind other than the bed: :func:`pyorch.trade.apply_target`."""
+    if str(scene.get("scene", "kind", "magnet_bed")) != "magnet_bed":
+        from pyorch import trade
+
+        return trade.apply_target(scene, table_path)
     choice = target_choice(scene, table_path, seeds_path)
     if choice is None:
         return scene, None
@@ -555,8 +582,13 @@ def bench_out(out: Path | None, update_shipped: bool, quick: bool) -> Path:
 def main_bench(args: Any) -> int:
     out = bench_out(getattr(args, "out", None), getattr(args, "update_shipped", False),
                     getattr(args, "quick", False))
+    from pyorch import trade
+
+    kind = trade.check_kind(getattr(args, "kind", None), args.what)
+    if kind is not None:
+        return trade.main_trade(kind, out, getattr(args, "quick", False), args.seeds)
     out.mkdir(parents=True, exist_ok=True)
-    seeds = list(range(1, args.seeds + 1))
+    seeds = list(range(1, (args.seeds or 3) + 1))
     if args.what == "trade":
         rows, table = trade_study(Path(args.scene), default_grid(args.quick), seeds, out / "trade",
                                   workers=args.workers)
