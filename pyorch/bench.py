@@ -344,15 +344,11 @@ def pareto_plot(table: pd.DataFrame, path: Path, noise: float | None = None) -> 
 
 
 def choose(table: pd.DataFrame, target_rel_error: float) -> pd.Series:
-    """Cheapest measured setting whose F_max and D_hat errors are below the target."""
-    t = table[table["threads"].eq(1)].dropna(subset=["err_max"])
-    ok = t[t["err_max"] <= target_rel_error]
-    if ok.empty:
-        best = t.sort_values("err_max").iloc[0]
-        raise ValueError(f"no measured setting reaches a relative error of {target_rel_error:g}; "
-                         f"the most accurate one measured is {best['label']} "
-                         f"({best['err_max']:.2e})")
-    return ok.sort_values("time_per_step_s").iloc[0]
+    """Cheapest measured setting whose F_max and D_hat errors are below the target
+    (:func:`pyorch.trade.cheapest` over the one-thread rows, by time per step)."""
+    from pyorch.trade import cheapest
+
+    return cheapest(table[table["threads"].eq(1)], target_rel_error, cost="time_per_step_s")
 
 
 def overrides_for(row: pd.Series) -> dict[str, Any]:

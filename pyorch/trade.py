@@ -190,13 +190,13 @@ def add_errors(study: Study, rows: pd.DataFrame) -> pd.DataFrame:
 
 
 def summarise(study: Study, rows: pd.DataFrame) -> pd.DataFrame:
-    """One row per setting: mean wall time and errors over seeds, ``err_max`` (the largest
-    error), ``speed_vs_baseline`` (baseline wall time / the row's, same study, same run) and
+    """One row per setting: median wall time (robust to another process taking the core for
+    a moment) and mean errors over seeds, ``err_max`` (the largest error), ``speed_vs_baseline`` (baseline wall time / the row's, same study, same run) and
     the failures with their messages."""
     knobs = [k.key for k in study.knobs]
     ok = rows[rows["status"].eq("completed")]
     err_cols = [c for c in rows.columns if c.startswith("err_")]
-    agg: dict[str, Any] = {"wall_time_s": "mean", "cpu_s": "mean", "steps": "first",
+    agg: dict[str, Any] = {"wall_time_s": "median", "cpu_s": "median", "steps": "first",
                            "seed": "count", **{c: "mean" for c in err_cols}}
     if "identical" in rows.columns:
         agg["identical"] = "all"
@@ -511,7 +511,7 @@ def main_trade(kind: str, out: Path, quick: bool = False, seeds: int | None = No
                                "display.float_format", "{:.3g}".format):
             print(f"== {study.name}: {study.summary}")
             print(table[cols].to_string(index=False))
-            if limits and not quick:
+            if limits and not quick and (study.limits() or study.memory):
                 lim = measure_limits(study)
                 lim.to_csv(out / f"trade_{study.name}_limits.csv", index=False)
                 print(lim[[c for c in ("limit", "key", "value", "message") if c in lim]]

@@ -142,5 +142,5 @@ def limits() -> list[Limit]:
 STUDIES = (Study(
     name="lj_box", kind="lj_box", scene=scene, knobs=KNOBS, baseline=BASELINE, grid=grid,
     measure=measure, errors=errors, reference=REFERENCE, adapt=adapt,
-    target_key="integration.target_rel_error", limits=limits, seeds=1,
+    target_key="integration.target_rel_error", limits=limits, seeds=3,
     summary="1600-particle LJ crystal, 1 T; errors vs velocity Verlet at dt 1e-3/64"),)

@@ -55,7 +55,7 @@ def bkw_scene() -> Scene:
 
 
 def onsager_grid(quick: bool) -> list[dict[str, Any]]:
-    n, dt, f = N_KNOB.key, DT_KNOB.key, FORCE_KNOB.key
+    n, dt = N_KNOB.key, DT_KNOB.key
     if quick:
         return [{}, {dt: 0.2}]
     out = trade.settings({}, {n: 5000}, {n: 80000}, {dt: 0.2}, {dt: 0.05}, {})
@@ -106,7 +106,7 @@ def bkw_errors(obs: dict[str, Any], ref: dict[str, Any] | None) -> dict[str, flo
 
 def limits() -> list[Limit]:
     return [Limit("largest dt with collisions", "rods.dt", 1e-3, 30.0, trade.engine_accepts,
-                  note="refused at check: dt <= tau"),
+                  note="refused at check: dt <= tau", iters=24),
             Limit("largest n of the exact (O(N^2)) force", "rods.n", 1000, 10**6,
                   trade.engine_accepts, overrides={"mean_field.onsager_force": "exact"},
                   note="refused at check", integer=True, iters=20)]
