@@ -7,7 +7,7 @@ every choice the engine's schema declares, so a new choice joins without code ch
 baseline and reference settings, the grid, what is measured in a finished run, the errors
 against the reference (a run, or an exact result: then the reference is not run) and the
 stability limits at the extremes. This module runs the grid over seeds, writes the table
-(one row per setting: wall time of the run, its ratio to the baseline's in the same study,
+(one row per setting: CPU and wall time of the run, the CPU ratio to the baseline's in the study,
 the errors, their maximum ``err_max``), measures the limits through the engine's own refusals
 (``pyorch check``) or failures, and picks the cheapest measured row meeting a scene's
 ``target_rel_error``.
@@ -34,6 +34,9 @@ from pyorch.scene import Scene, key_specs
 
 #: a setting: knob (``group.key``) -> value
 Setting = Mapping[str, Any]
+#: the cost of a row: CPU seconds [s] of the engine process (user + system, one thread), the
+#: figure a machine shared with other jobs does not inflate (its wall time is kept beside it)
+COST = "cpu_s"
 
 
 def schema_choices(kind: str, dotted: str) -> tuple[str, ...]:
@@ -190,9 +193,9 @@ def add_errors(study: Study, rows: pd.DataFrame) -> pd.DataFrame:
 
 
 def summarise(study: Study, rows: pd.DataFrame) -> pd.DataFrame:
-    """One row per setting: median wall time (robust to another process taking the core for
-    a moment) and mean errors over seeds, ``err_max`` (the largest error), ``speed_vs_baseline`` (baseline wall time / the row's, same study, same run) and
-    the failures with their messages."""
+    """One row per setting: median CPU and wall times and mean errors over seeds,
+    ``err_max`` (the largest error), ``speed_vs_baseline`` (the baseline's CPU time / the
+    row's, same study, same run) and the failures with their messages."""
     knobs = [k.key for k in study.knobs]
     ok = rows[rows["status"].eq("completed")]
     err_cols = [c for c in rows.columns if c.startswith("err_")]
@@ -210,11 +213,11 @@ def summarise(study: Study, rows: pd.DataFrame) -> pd.DataFrame:
         table = pd.concat([table, f], ignore_index=True)
     if err_cols:
         table["err_max"] = table[err_cols].max(axis=1, skipna=False)
-    base = table.loc[table["label"].eq(study.label(study.baseline)), "wall_time_s"]
+    base = table.loc[table["label"].eq(study.label(study.baseline)), COST]
     if not base.empty:
-        table["speed_vs_baseline"] = float(base.iloc[0]) / table["wall_time_s"]
+        table["speed_vs_baseline"] = float(base.iloc[0]) / table[COST]
     table.insert(0, "study", study.name)
-    return table.sort_values("wall_time_s").reset_index(drop=True)
+    return table.sort_values(COST).reset_index(drop=True)
 
 
 def run_study(study: Study, out: Path, quick: bool = False, seeds: int | None = None,
@@ -356,7 +359,7 @@ def file_digest(path: Path) -> str:
 
 
 # ------------------------------------------------------------------------------ choosing
-def cheapest(table: pd.DataFrame, target: float, cost: str = "wall_time_s",
+def cheapest(table: pd.DataFrame, target: float, cost: str = "cpu_s",
              err: str = "err_max") -> pd.Series:
     """The cheapest measured row whose ``err`` is at most ``target``; ValueError naming the
     most accurate row when none is."""
@@ -379,7 +382,7 @@ class Choice:
     row: pd.Series
     floor: float
     floor_label: str
-    floor_cost: float = float("nan")   #: wall time [s] of floor_label
+    floor_cost: float = float("nan")   #: CPU time [s] of floor_label
 
     @property
     def below_floor(self) -> bool:
@@ -394,14 +397,14 @@ class Choice:
         r = self.row
         knobs = ", ".join(f"{k.key} = {_fmt(_plain(r[k.key]))}" for k in self.study.knobs)
         line = (f"target_rel_error {self.target:g}: chose {r['label']} ({knobs}; measured "
-                f"error {r['err_max']:.2e}, {r['wall_time_s']:.3g} s on the {self.study.name} "
+                f"error {r['err_max']:.2e}, {r[COST]:.3g} s CPU on the {self.study.name} "
                 f"trade scene)")
         if self.below_floor:
             line += (f"\nwarning: target_rel_error {self.target:g} is below every error the "
                      f"{self.study.name} table measured (the smallest: {self.floor:.2e}, "
                      f"{self.floor_label}); only the reference meets it, and its error 0 is "
                      f"the definition of the reference, not a measurement: the run is that "
-                     f"reference, {r['wall_time_s'] / self.floor_cost:.3g}x the wall time of "
+                     f"reference, {r[COST] / self.floor_cost:.3g}x the CPU time of "
                      f"{self.floor_label}")
         return line
 
@@ -415,7 +418,7 @@ def choose_target(study: Study, table: pd.DataFrame, target: float) -> Choice:
     against an exact result has no row of error 0). With a reference run, whose error is 0 by
     definition, a target below every other row's error chooses the reference, and
     :meth:`Choice.text` says so."""
-    t = table.dropna(subset=["err_max", "wall_time_s"])
+    t = table.dropna(subset=["err_max", COST])
     ref = study.label(study.reference) if study.reference is not None else None
     measured = t[~t["label"].eq(ref)] if ref is not None else t
     if measured.empty:
@@ -423,7 +426,7 @@ def choose_target(study: Study, table: pd.DataFrame, target: float) -> Choice:
     best = measured.sort_values("err_max").iloc[0]
     row = cheapest(t, target)
     return Choice(study, float(target), row, float(best["err_max"]), str(best["label"]),
-                  float(best["wall_time_s"]))
+                  float(best[COST]))
 
 
 PACKAGED = Path(__file__).resolve().parent / "data"
@@ -504,7 +507,7 @@ def main_trade(kind: str, out: Path, quick: bool = False, seeds: int | None = No
         rows, table = run_study(study, out / f"trade_{study.name}", quick, seeds)
         public(rows).to_csv(out / f"trade_{study.name}_rows.csv", index=False)
         public(table).to_csv(out / f"trade_{study.name}.csv", index=False)
-        cols = [c for c in ["label", "wall_time_s", "speed_vs_baseline", "err_max", "identical",
+        cols = [c for c in ["label", COST, "wall_time_s", "speed_vs_baseline", "err_max", "identical",
                             "status"] if c in table.columns]
         cols += [c for c in table.columns if c.startswith("err_") and c not in cols]
         with pd.option_context("display.width", 200, "display.max_colwidth", 60,

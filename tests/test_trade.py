@@ -67,7 +67,7 @@ def _study_table(study: trade.Study, rows: list[tuple[dict[str, Any], float, flo
     out = []
     for setting, wall, err in rows:
         s = study.full(setting)
-        out.append(dict(s, label=study.label(s), wall_time_s=wall, err_max=err))
+        out.append(dict(s, label=study.label(s), cpu_s=wall, err_max=err))
     return pd.DataFrame(out)
 
 
@@ -249,3 +249,26 @@ def test_check_of_an_lj_box_scene_prints_the_choice(tmp_path, monkeypatch, capsy
     out = capsys.readouterr().out.splitlines()
     assert out[0] == "ok: lj_box, 20000 steps"
     assert out[1].startswith("target_rel_error 0.01: chose velocity_verlet_dt0.008_skin0.6_")
+
+
+def test_energy_probe_run_again_into_its_directory(tmp_path):
+    """A bed study run again into the same directory (as --update-shipped does) lost every
+    E_drift: the probe's run directory held the earlier run and was refused, and the refusal
+    became NaN silently. The probe now replaces its own earlier run."""
+    sc = Scene.read(ROOT / "runs" / "bench_compression.nml").with_overrides(
+        {"particles.n": 24, "cell.width": 8.0, "cell.height": 20.0, "protocol.h_start": 20.0,
+         "protocol.h0": 18.0, "protocol.hf": 9.0, "protocol.t_relax": 2.0})
+    s = bench.Setting.of(neighbour="all_pairs")
+    first = bench.run_energy_probe(sc, s, 1, tmp_path, 0.5)
+    again = bench.run_energy_probe(sc, s, 1, tmp_path, 0.5)
+    assert np.isfinite(first["E_drift"]) and again["E_drift"] == first["E_drift"]
+
+
+def test_bed_cost_is_cpu_per_step_where_measured():
+    """The bed's choice compares CPU time per step when the table has it (a loaded machine
+    inflates wall times unevenly), the wall time for older tables."""
+    t = pd.DataFrame([dict(bench.Setting.of(r_cut=rc).d, label=f"rc{rc}", threads=1, err_max=1e-3,
+                           time_per_step_s=w, cpu_per_step_s=c)
+                      for rc, w, c in ((3.0, 1e-5, 3e-5), (5.0, 2e-5, 2e-5))])
+    assert bench.choose(t, 1e-2)["label"] == "rc5.0"
+    assert bench.choose(t.drop(columns="cpu_per_step_s"), 1e-2)["label"] == "rc3.0"
