@@ -124,7 +124,7 @@ STUDIES = (
     Study(name="rods_onsager", kind="rods", scene=onsager_scene,
           knobs=(N_KNOB, DT_KNOB, FORCE_KNOB), baseline=ONSAGER_BASE, grid=onsager_grid,
           measure=onsager_measure, errors=onsager_errors, target_key="rods.target_rel_error",
-          applies=_is_onsager, limits=limits, seeds=2, memory=("rods.n", 10**7),
+          applies=_is_onsager, limits=limits, seeds=4, memory=("rods.n", 10**7),
           summary="Onsager mean field alpha 4 (ordered), 30 t0; errors vs the exact steady "
                   "state"),
     Study(name="rods_bkw", kind="rods", scene=bkw_scene, knobs=(N_KNOB, DT_KNOB),
