@@ -91,7 +91,8 @@ def _parser() -> argparse.ArgumentParser:
                         "the production settings with standard errors")
     b.add_argument("--scene", type=Path, default=Path("runs/bench_compression.nml"))
     b.add_argument("--kind", default=None,
-                   help="trade: the kind's own study (lj_box, rods, dla; default the bed's)")
+                   help="trade: the kind's own studies (lj_box, rods, dla; default the bed's), "
+                        "each on its own scene (--scene, --workers and --reuse are the bed's)")
     b.add_argument("--seeds", type=int, default=None,
                    help="seeds per setting (default 3 for the bed, the study's own for a kind)")
     b.add_argument("--quick", action="store_true", help="4 settings only (smoke test)")
