@@ -419,7 +419,25 @@ def selection_table(trade: pd.DataFrame, seeds: pd.DataFrame | None) -> pd.DataF
         return t
     r = resolved_errors(seeds)
     t = t[~t["label"].isin(set(r["label"]))]
-    return pd.concat([t, r[[c for c in r.columns if c in t.columns]]], ignore_index=True)
+    merged = pd.concat([t, r[[c for c in r.columns if c in t.columns]]], ignore_index=True)
+    return with_cpu_cost(merged, trade)
+
+
+def with_cpu_cost(t: pd.DataFrame, trade: pd.DataFrame) -> pd.DataFrame:
+    """Rows without a CPU time per step (the seed study measures none) get the trade table's
+    for the same setting, else their wall time x the trade table's median CPU/wall ratio, so
+    that one cost compares every row (a table without CPU times is returned as it is)."""
+    if "cpu_per_step_s" not in trade.columns or trade["cpu_per_step_s"].isna().all():
+        return t
+    one = trade[trade["threads"].eq(1)].dropna(subset=["cpu_per_step_s", "time_per_step_s"])
+    out = t.copy()
+    cpu = out["cpu_per_step_s"].fillna(out["label"].map(one.set_index("label")["cpu_per_step_s"]))
+    ratio = float((one["cpu_per_step_s"] / one["time_per_step_s"]).median())
+    estimated = cpu.isna()
+    out["cpu_per_step_s"] = cpu.fillna(out["time_per_step_s"] * ratio)
+    out.loc[estimated, "source"] = out.loc[estimated, "source"] + \
+        f" (CPU per step: wall x {ratio:.3g}, the trade table's median ratio)"
+    return out
 
 
 #: particles of the scene the shipped tables were measured on (runs/bench_compression.nml)

@@ -272,3 +272,27 @@ def test_bed_cost_is_cpu_per_step_where_measured():
                       for rc, w, c in ((3.0, 1e-5, 3e-5), (5.0, 2e-5, 2e-5))])
     assert bench.choose(t, 1e-2)["label"] == "rc5.0"
     assert bench.choose(t.drop(columns="cpu_per_step_s"), 1e-2)["label"] == "rc3.0"
+
+
+def test_seed_study_rows_keep_a_cost_beside_cpu_timed_rows():
+    """The seed study measures no CPU time: its rows took part in the choice only by wall
+    time; with the trade table's CPU times they get the same setting's CPU time, or their wall
+    time x the table's CPU/wall ratio, instead of dropping out of the choice."""
+    rows = []
+    for rc, tail, w, c in ((3.0, "frozen", 2e-5, 1e-5), (7.13, "none", 4e-5, 2e-5)):
+        s = bench.Setting.of(r_cut=rc, tail=tail)
+        rows.append(dict(s.d, label=s.label(), threads=1, time_per_step_s=w, cpu_per_step_s=c,
+                         err_max=0.02, err_F_max=0.02, err_D_hat=1e-3))
+    trade_t = pd.DataFrame(rows)
+    seeds = []
+    for rc, w in ((3.0, 2.2e-5), (4.13, 3e-5)):
+        s = bench.Setting.of(r_cut=rc, tail="frozen")
+        seeds.append(dict(s.d, label=s.label(), threads=1, time_per_step_s=w, n_seeds=64,
+                          bias_F_max=1e-3, sem_bias_F_max=5e-4, bias_D_hat=1e-4,
+                          sem_bias_D_hat=1e-4))
+    sel = bench.selection_table(trade_t, pd.DataFrame(seeds)).set_index("label")
+    assert sel.loc[bench.Setting.of(r_cut=3.0, tail="frozen").label(), "cpu_per_step_s"] == 1e-5
+    est = sel.loc[bench.Setting.of(r_cut=4.13, tail="frozen").label()]
+    assert est["cpu_per_step_s"] == pytest.approx(3e-5 * 0.5) and "wall x 0.5" in est["source"]
+    assert bench.choose(sel.reset_index(), 5e-3)["label"] == \
+        bench.Setting.of(r_cut=3.0, tail="frozen").label()
