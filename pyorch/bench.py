@@ -476,7 +476,9 @@ class TargetChoice:
                      f"measured (the smallest: {self.floor:.2e}, {self.floor_label}); only the "
                      f"reference meets it, and its error 0 is the definition of the reference, "
                      f"not a measurement: the run is that reference, "
-                     f"{cost_per_time(r) / self.floor_cost:.3g}x the wall time per simulated T "
+                     f"{cost_per_time(r) / self.floor_cost:.3g}x the "
+                     f"{'CPU' if np.isfinite(r.get('cpu_per_step_s', np.nan)) else 'wall'} "
+                     f"time per simulated T "
                      f"of {self.floor_label}")
         return line
 
