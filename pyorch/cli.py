@@ -191,7 +191,7 @@ def _cmd_check(args: argparse.Namespace) -> int:
 
         kind_choice = trade.target_choice(scene)
         if kind_choice is not None:
-            scene = scene.with_overrides(kind_choice.overrides())
+            scene = scene.with_overrides(kind_choice.overrides(scene))
         info = validate(scene if args.overrides or kind_choice else args.scene)
         print(f"ok: {info['kind']}, {info['n_steps']} steps")
         if kind_choice is not None:

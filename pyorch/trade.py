@@ -104,6 +104,8 @@ class Study:
     summary: str = ""
     #: (count key, probe count) of :func:`memory_limit` (None: the kind has no estimate)
     memory: tuple[str, int] | None = None
+    #: (user's scene, chosen knobs) -> derived overrides that keep its run's meaning
+    retime: Callable[[Scene, dict[str, Any]], dict[str, Any]] = lambda sc, knobs: {}
 
     def full(self, setting: Mapping[str, Any]) -> dict[str, Any]:
         """The setting with every knob (baseline values for the others)."""
@@ -388,10 +390,12 @@ class Choice:
     def below_floor(self) -> bool:
         return self.target < self.floor
 
-    def overrides(self) -> dict[str, Any]:
-        """Scene overrides reproducing the row's knobs (only those: the user's run length and
-        outputs stay the scene's)."""
-        return {k.key: _plain(self.row[k.key]) for k in self.study.knobs}
+    def overrides(self, scene: Scene | None = None) -> dict[str, Any]:
+        """Scene overrides reproducing the row's knobs, and what the study's ``retime`` derives
+        for ``scene`` (e.g. steps and cadences in steps scaled to the new dt, so the run covers
+        the same simulated time)."""
+        knobs = {k.key: _plain(self.row[k.key]) for k in self.study.knobs}
+        return {**knobs, **(self.study.retime(scene, knobs) if scene is not None else {})}
 
     def text(self) -> str:
         r = self.row
@@ -494,7 +498,7 @@ def apply_target(scene: Scene, path: Path | None = None) -> tuple[Scene, str | N
     choice = target_choice(scene, path)
     if choice is None:
         return scene, None
-    return scene.with_overrides(choice.overrides()), choice.text()
+    return scene.with_overrides(choice.overrides(scene)), choice.text()
 
 
 # ------------------------------------------------------------------------------ the command

@@ -98,7 +98,9 @@ def test_target_in_an_lj_box_scene_is_applied_and_printed(tmp_path, capsys):
     new, text = bench.apply_target(scene, path)
     assert new.get("integration", "method") == "velocity_verlet"
     assert new.get("integration", "dt") == 4e-3 and new.get("steric", "pair_eval") == "table"
-    assert new.get("integration", "steps") == 20000        # the user's run length stays
+    # the same simulated time: 20000 steps of 1e-3 T -> 5000 of 4e-3 T, cadences alike
+    assert new.get("integration", "steps") == 5000
+    assert new.get("output", "frame_every") == 25 and new.get("output", "checkpoint_every") == 2500
     assert text.startswith("target_rel_error 0.01: chose velocity_verlet_dt0.004_")
     assert "steric.pair_eval = table" in text
 
@@ -247,7 +249,7 @@ def test_check_of_an_lj_box_scene_prints_the_choice(tmp_path, monkeypatch, capsy
     demo = str(ROOT / "runs" / "lj_demo.nml")
     assert main(["check", demo, "--set", "integration.target_rel_error=0.01"]) == 0
     out = capsys.readouterr().out.splitlines()
-    assert out[0] == "ok: lj_box, 20000 steps"
+    assert out[0] == "ok: lj_box, 2500 steps"                  # 20 T at dt 8e-3
     assert out[1].startswith("target_rel_error 0.01: chose velocity_verlet_dt0.008_skin0.6_")
 
 

@@ -58,6 +58,19 @@ def adapt(s: dict[str, Any]) -> dict[str, Any]:
             "output.energy_every": max(1, steps // 50)}
 
 
+def keep_time(scene: Scene, knobs: dict[str, Any]) -> dict[str, Any]:
+    """A user's scene given another dt keeps its simulated time: ``&integration steps`` and
+    the cadences in steps of ``&output`` scale by dt_old/dt_new (rounded, at least 1)."""
+    old, new = float(scene.get("integration", "dt")), float(knobs["integration.dt"])
+    r = old / new
+    out = {"integration.steps": max(1, int(round(int(scene.get("integration", "steps")) * r)))}
+    for key in ("frame_every", "energy_every", "checkpoint_every", "progress_every"):
+        v = int(scene.get("output", key, 0) or 0)
+        if v > 0:
+            out[f"output.{key}"] = max(1, int(round(v * r)))
+    return out
+
+
 def grid(quick: bool) -> list[dict[str, Any]]:
     """Every integrator at dt 8e-3 .. 1e-3; skins 0.2 and 1.2; the other searches; every
     cheaper pair evaluation at the baseline and on velocity Verlet at dt 4e-3."""
@@ -141,6 +154,6 @@ def limits() -> list[Limit]:
 
 STUDIES = (Study(
     name="lj_box", kind="lj_box", scene=scene, knobs=KNOBS, baseline=BASELINE, grid=grid,
-    measure=measure, errors=errors, reference=REFERENCE, adapt=adapt,
+    measure=measure, errors=errors, reference=REFERENCE, adapt=adapt, retime=keep_time,
     target_key="integration.target_rel_error", limits=limits, seeds=3,
     summary="1600-particle LJ crystal, 1 T; errors vs velocity Verlet at dt 1e-3/64"),)
