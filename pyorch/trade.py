@@ -32,8 +32,6 @@ import pandas as pd
 from pyorch import SceneError
 from pyorch.scene import Scene, key_specs
 
-#: a setting: knob (``group.key``) -> value
-Setting = Mapping[str, Any]
 #: the cost of a row: CPU seconds [s] of the engine process (user + system, one thread), the
 #: figure a machine shared with other jobs does not inflate (its wall time is kept beside it)
 COST = "cpu_s"
@@ -541,20 +539,6 @@ def check_kind(kind: str | None, what: str) -> str | None:
                          f"is the bed's)")
     studies(kind)
     return kind
-
-
-def stable_run(scene: Scene) -> tuple[bool, str]:
-    """A run of the scene completes (the engine's guards did not stop it)."""
-    import tempfile
-
-    from pyorch.run import run
-
-    with tempfile.TemporaryDirectory() as tmp:
-        try:
-            run(scene, Path(tmp) / "r", progress=False, threads=1)
-        except Exception as exc:  # noqa: BLE001 - a failure is the answer
-            return False, str(exc).splitlines()[0][:300]
-    return True, ""
 
 
 def rel(a: float, b: float) -> float:
