@@ -3,7 +3,8 @@
 ``trade_study`` runs one scene (default runs/bench_compression.nml: the
 standard bed compressed to maximum compression) over a grid of knobs
 (neighbour strategy, cut-off r_c, skin, truncation/tail, time step dt,
-integrator) and seeds, and reports for every setting: wall time per step,
+integrator, pair evaluation: every choice of the schema's ``pair_eval``) and seeds, and
+reports for every setting: wall and CPU time per step,
 pair evaluations per second, list builds, and the error against the
 reference (O(N^2), smallest dt) of
 
@@ -22,9 +23,9 @@ round-off) can decorrelate trajectories: the study also measures this noise
 floor by re-running the reference with velocity Verlet, which is the same
 scheme as Stormer-Verlet up to round-off.
 
-``choose`` picks the cheapest measured setting meeting a target relative
-error; ``pyorch run`` uses it when a scene sets ``&integration
-target_rel_error``.
+``choose`` picks the cheapest measured setting (CPU time per step where measured) meeting
+a target relative error; ``pyorch run`` uses it when a scene sets ``&integration
+target_rel_error``. The other kinds' studies: :mod:`pyorch.trade`.
 
 Reproduce: ``pyorch bench trade`` (about 10 minutes on one core), outputs in
 runs/out/bench/ (``--out DIR`` elsewhere; ``--update-shipped`` replaces the shipped tables
