@@ -3,7 +3,8 @@
 ``trade_study`` runs one scene (default runs/bench_compression.nml: the
 standard bed compressed to maximum compression) over a grid of knobs
 (neighbour strategy, cut-off r_c, skin, truncation/tail, time step dt,
-integrator) and seeds, and reports for every setting: wall time per step,
+integrator, pair evaluation: every choice of the schema's ``pair_eval``) and seeds, and
+reports for every setting: wall and CPU time per step,
 pair evaluations per second, list builds, and the error against the
 reference (O(N^2), smallest dt) of
 
@@ -22,9 +23,9 @@ round-off) can decorrelate trajectories: the study also measures this noise
 floor by re-running the reference with velocity Verlet, which is the same
 scheme as Stormer-Verlet up to round-off.
 
-``choose`` picks the cheapest measured setting meeting a target relative
-error; ``pyorch run`` uses it when a scene sets ``&integration
-target_rel_error``.
+``choose`` picks the cheapest measured setting (CPU time per step where measured) meeting
+a target relative error; ``pyorch run`` uses it when a scene sets ``&integration
+target_rel_error``. The other kinds' studies: :mod:`pyorch.trade`.
 
 Reproduce: ``pyorch bench trade`` (about 10 minutes on one core), outputs in
 runs/out/bench/ (``--out DIR`` elsewhere; ``--update-shipped`` replaces the shipped tables
@@ -49,10 +50,10 @@ from pyorch import io
 from pyorch.run import Run, run
 from pyorch.scene import Scene
 
-KNOBS = ["neighbour", "r_cut", "skin", "truncation", "tail", "dt", "integrator"]
+KNOBS = ["neighbour", "r_cut", "skin", "truncation", "tail", "dt", "integrator", "pair_eval"]
 BASELINE: dict[str, Any] = {"neighbour": "verlet", "r_cut": 7.13, "skin": 1.0,
                             "truncation": "plain", "tail": "none", "dt": 2.0e-3,
-                            "integrator": "stormer_verlet"}
+                            "integrator": "stormer_verlet", "pair_eval": "exact"}
 REFERENCE: dict[str, Any] = dict(BASELINE, neighbour="all_pairs", dt=5.0e-4)
 
 
@@ -85,11 +86,24 @@ class Setting:
                 parts.append({"frozen": "tail", "linear": "lintail"}[d["tail"]])
         parts += [f"dt{d['dt']:g}", {"stormer_verlet": "SV", "velocity_verlet": "VV",
                                      "euler": "Eu"}[d["integrator"]]]
+        if d["pair_eval"] != BASELINE["pair_eval"]:   # exact rows keep their labels
+            parts.append(str(d["pair_eval"]))
         return "_".join(parts)
 
 
+def pair_eval_choices() -> tuple[str, ...]:
+    """The bed's pair evaluations other than the exact one, as the engine's schema declares
+    them (``&integration pair_eval``): a choice added there joins the grid unchanged."""
+    from pyorch.trade import schema_choices
+
+    return tuple(v for v in schema_choices("magnet_bed", "integration.pair_eval")
+                 if v != BASELINE["pair_eval"])
+
+
 def default_grid(quick: bool = False) -> list[Setting]:
-    """One knob at a time around the baseline, plus corrections at short r_c."""
+    """One knob at a time around the baseline, plus corrections at short r_c; every cheaper
+    pair evaluation on the baseline, on the cheapest accurate list setting (r_c 3 + frozen
+    tail) and on all pairs."""
     if quick:
         return [Setting.of(), Setting.of(neighbour="cells"), Setting.of(r_cut=4.0),
                 Setting.of(dt=4.0e-3)]
@@ -102,6 +116,9 @@ def default_grid(quick: bool = False) -> list[Setting]:
     grid += [Setting.of(integrator="euler", dt=5.0e-4)]
     grid += [Setting.of(r_cut=rc, truncation="shifted_force") for rc in (3.0, 5.0, 7.13)]
     grid += [Setting.of(r_cut=rc, tail="frozen") for rc in (3.0, 5.0, 7.13)]
+    for ev in pair_eval_choices():
+        grid += [Setting.of(pair_eval=ev), Setting.of(r_cut=3.0, tail="frozen", pair_eval=ev),
+                 Setting.of(neighbour="all_pairs", pair_eval=ev)]
     seen: dict[Setting, None] = {}
     for s in grid:
         seen.setdefault(s, None)
@@ -159,7 +176,8 @@ def run_energy_probe(base: Scene, setting: Setting, seed: int, out_dir: Path, t_
     ov = dict(setting.overrides(), **{"particles.seed": seed},
               **energy_probe_overrides(t_probe, float(setting.d["dt"])))
     try:
-        r = run(base.with_overrides(ov), out_dir / name, progress=False, threads=threads)
+        r = run(base.with_overrides(ov), out_dir / name, progress=False, threads=threads,
+                overwrite=True)   # a study run again into its directory (was: NaN, silently)
         return {"E_drift": energy_drift(r.energy(), int(r.meta["n_particles"]))}
     except Exception:  # noqa: BLE001 - a failed probe is a missing measurement, not a crash
         return {"E_drift": float("nan")}
@@ -173,9 +191,16 @@ def run_setting(base: Scene, setting: Setting, seed: int, out_dir: Path,
     name = f"{setting.label()}_seed{seed}_th{threads}"
     scene = base.with_overrides(dict(setting.overrides(), **{"particles.seed": seed}))
     row: dict[str, Any] = dict(setting.d, seed=seed, threads=threads, label=setting.label())
+    from pyorch.trade import cpu_children
+
     try:
+        cpu0 = cpu_children()
         r = run(scene, out_dir / name, progress=False, threads=threads, overwrite=True)
+        cpu = cpu_children() - cpu0
         row.update(measure(r))
+        # CPU time of the engine process per step: what a machine shared with other jobs
+        # does not inflate (set-up and outputs included); the cost target_rel_error compares
+        row["cpu_per_step_s"] = cpu / max(int(r.meta["steps_done"]), 1)
     except Exception as exc:  # a failed setting is a measured outcome (e.g. unstable dt)
         row.update(status=f"failed: {exc}")
     if energy_probe_t > 0:
@@ -201,6 +226,7 @@ def summarise(rows: pd.DataFrame) -> pd.DataFrame:
     """One row per setting: mean time and errors over seeds."""
     ok = rows[rows["status"].eq("completed")]
     agg = {"time_per_step_s": "mean", "pair_evals_per_s": "mean", "list_builds": "mean",
+           **({"cpu_per_step_s": "median"} if "cpu_per_step_s" in ok.columns else {}),
            "pairs_per_step": "mean", "err_F_max": "mean", "err_D_hat": "mean", "err_n6": "mean",
            "bias_F_max": "mean", "bias_D_hat": "mean", "bias_n6": "mean", "seed": "count"}
     if "E_drift" in ok.columns:
@@ -302,6 +328,9 @@ def pareto_plot(table: pd.DataFrame, path: Path, noise: float | None = None) -> 
                    np.where(t["tail"].eq("frozen"), "verlet + frozen tail",
                             np.where(t["truncation"].eq("shifted_force"), "verlet shifted force",
                                      t["neighbour"])))
+    if "pair_eval" in t.columns:          # a cheaper pair evaluation is its own family
+        ev = t["pair_eval"].fillna(BASELINE["pair_eval"]).astype(str)
+        fam = np.where(ev.eq(BASELINE["pair_eval"]), fam, "pair_eval " + ev)
     for name in pd.unique(fam):
         part = t[fam == name]
         ax.scatter(part["time_per_step_s"] * 1e6, part["err_max"].clip(lower=1e-6), label=name, s=25)
@@ -325,22 +354,29 @@ def pareto_plot(table: pd.DataFrame, path: Path, noise: float | None = None) -> 
 
 
 def choose(table: pd.DataFrame, target_rel_error: float) -> pd.Series:
-    """Cheapest measured setting whose F_max and D_hat errors are below the target."""
-    t = table[table["threads"].eq(1)].dropna(subset=["err_max"])
-    ok = t[t["err_max"] <= target_rel_error]
-    if ok.empty:
-        best = t.sort_values("err_max").iloc[0]
-        raise ValueError(f"no measured setting reaches a relative error of {target_rel_error:g}; "
-                         f"the most accurate one measured is {best['label']} "
-                         f"({best['err_max']:.2e})")
-    return ok.sort_values("time_per_step_s").iloc[0]
+    """Cheapest measured setting whose F_max and D_hat errors are below the target
+    (:func:`pyorch.trade.cheapest` over the one-thread rows, by time per step)."""
+    from pyorch.trade import cheapest
+
+    return cheapest(table[table["threads"].eq(1)], target_rel_error, cost=cost_column(table))
+
+
+def cost_column(table: pd.DataFrame) -> str:
+    """What "cheapest" compares: the CPU time per step where the table has it (tables from
+    before it was measured: the wall time per step)."""
+    if "cpu_per_step_s" in table.columns and table["cpu_per_step_s"].notna().any():
+        return "cpu_per_step_s"
+    return "time_per_step_s"
 
 
 def overrides_for(row: pd.Series) -> dict[str, Any]:
-    """Scene overrides reproducing a table row's setting."""
+    """Scene overrides reproducing a table row's setting (a knob a table predates, e.g.
+    pair_eval in a table measured before it existed, is the baseline's value)."""
     out = {}
     for k in KNOBS:
-        v = row[k]
+        v = row.get(k, BASELINE[k])
+        if v is None or (isinstance(v, float) and np.isnan(v)):
+            v = BASELINE[k]
         if isinstance(v, (np.floating, np.integer)):
             v = v.item()
         out[f"integration.{k}"] = v
@@ -384,7 +420,25 @@ def selection_table(trade: pd.DataFrame, seeds: pd.DataFrame | None) -> pd.DataF
         return t
     r = resolved_errors(seeds)
     t = t[~t["label"].isin(set(r["label"]))]
-    return pd.concat([t, r[[c for c in r.columns if c in t.columns]]], ignore_index=True)
+    merged = pd.concat([t, r[[c for c in r.columns if c in t.columns]]], ignore_index=True)
+    return with_cpu_cost(merged, trade)
+
+
+def with_cpu_cost(t: pd.DataFrame, trade: pd.DataFrame) -> pd.DataFrame:
+    """Rows without a CPU time per step (the seed study measures none) get the trade table's
+    for the same setting, else their wall time x the trade table's median CPU/wall ratio, so
+    that one cost compares every row (a table without CPU times is returned as it is)."""
+    if "cpu_per_step_s" not in trade.columns or trade["cpu_per_step_s"].isna().all():
+        return t
+    one = trade[trade["threads"].eq(1)].dropna(subset=["cpu_per_step_s", "time_per_step_s"])
+    out = t.copy()
+    cpu = out["cpu_per_step_s"].fillna(out["label"].map(one.set_index("label")["cpu_per_step_s"]))
+    ratio = float((one["cpu_per_step_s"] / one["time_per_step_s"]).median())
+    estimated = cpu.isna()
+    out["cpu_per_step_s"] = cpu.fillna(out["time_per_step_s"] * ratio)
+    out.loc[estimated, "source"] = out.loc[estimated, "source"] + \
+        f" (CPU per step: wall x {ratio:.3g}, the trade table's median ratio)"
+    return out
 
 
 #: particles of the scene the shipped tables were measured on (runs/bench_compression.nml)
@@ -412,15 +466,20 @@ class TargetChoice:
         """One line: the choice, its measured error and time; a second one when the target is
         below what the table measured."""
         r = self.row
+        ev = overrides_for(r)["integration.pair_eval"]
         line = (f"target_rel_error {self.target:g}: chose {r['label']} "
-                f"(measured error {r['err_max']:.2e}: {r['source']}; "
-                f"{r['time_per_step_s'] * 1e6:.1f} us/step on the trade scene)")
+                f"(pair_eval '{ev}'; measured error {r['err_max']:.2e}: {r['source']}; "
+                f"{r['time_per_step_s'] * 1e6:.1f} us/step on the trade scene"
+                + (f", {r['cpu_per_step_s'] * 1e6:.1f} us CPU" if np.isfinite(
+                    r.get("cpu_per_step_s", float("nan"))) else "") + ")")
         if self.below_floor:
             line += (f"\nwarning: target_rel_error {self.target:g} is below every error the table "
                      f"measured (the smallest: {self.floor:.2e}, {self.floor_label}); only the "
                      f"reference meets it, and its error 0 is the definition of the reference, "
                      f"not a measurement: the run is that reference, "
-                     f"{cost_per_time(r) / self.floor_cost:.3g}x the wall time per simulated T "
+                     f"{cost_per_time(r) / self.floor_cost:.3g}x the "
+                     f"{'CPU' if np.isfinite(r.get('cpu_per_step_s', np.nan)) else 'wall'} "
+                     f"time per simulated T "
                      f"of {self.floor_label}")
         return line
 
@@ -444,7 +503,10 @@ def choose_target(target: float, table: pd.DataFrame) -> TargetChoice:
 
 def cost_per_time(row: pd.Series) -> float:
     """Wall time per unit of simulated time [s/T] of a table row: time per step / dt."""
-    return float(row["time_per_step_s"]) / float(row["dt"])
+    cost = row.get("cpu_per_step_s", float("nan"))
+    if cost is None or not np.isfinite(cost):
+        cost = row["time_per_step_s"]
+    return float(cost) / float(row["dt"])
 
 
 def target_choice(scene: Scene, table_path: Path | None = None,
@@ -475,7 +537,11 @@ def apply_target(scene: Scene, table_path: Path | None = None,
     """If the scene asks for target_rel_error, return it with the cheapest measured setting
     applied (:func:`target_choice`) and the description of the choice
     (:meth:`TargetChoice.text`: one line, a second one when the target is below what the
-    table measured)."""
+    table measured). A kind other than the bed: :func:`pyorch.trade.apply_target`."""
+    if str(scene.get("scene", "kind", "magnet_bed")) != "magnet_bed":
+        from pyorch import trade
+
+        return trade.apply_target(scene, table_path)
     choice = target_choice(scene, table_path, seeds_path)
     if choice is None:
         return scene, None
@@ -555,8 +621,13 @@ def bench_out(out: Path | None, update_shipped: bool, quick: bool) -> Path:
 def main_bench(args: Any) -> int:
     out = bench_out(getattr(args, "out", None), getattr(args, "update_shipped", False),
                     getattr(args, "quick", False))
+    from pyorch import trade
+
+    kind = trade.check_kind(getattr(args, "kind", None), args.what)
+    if kind is not None:
+        return trade.main_trade(kind, out, getattr(args, "quick", False), args.seeds)
     out.mkdir(parents=True, exist_ok=True)
-    seeds = list(range(1, args.seeds + 1))
+    seeds = list(range(1, (args.seeds or 3) + 1))
     if args.what == "trade":
         rows, table = trade_study(Path(args.scene), default_grid(args.quick), seeds, out / "trade",
                                   workers=args.workers)
@@ -566,7 +637,8 @@ def main_bench(args: Any) -> int:
         noise = float(probe[["err_F_max", "err_D_hat"]].max(axis=1).mean()) if not probe.empty else None
         pareto_plot(table, out / "trade_pareto.png", noise)
         (out / "trade_meta.json").write_text(json.dumps({"noise_floor": noise, "seeds": seeds}))
-        cols = ["label", "time_per_step_s", "pair_evals_per_s", "list_builds", "err_F_max",
+        cols = ["label", "time_per_step_s", "cpu_per_step_s", "pair_evals_per_s", "list_builds",
+                "err_F_max",
                 "err_D_hat", "err_n6", "bias_F_max", "E_drift"]
         print(table[table["threads"].eq(1)][cols].to_string(index=False))
         print(f"noise floor (reference in velocity-Verlet form): {noise}")

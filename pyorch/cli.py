@@ -10,6 +10,7 @@
     pyorch analyze RUN_DIR [--out DIR]
     pyorch bench trade|bias|seeds [--scene S] [--seeds N] [--quick] [--workers W]
                  [--out DIR | --update-shipped]
+    pyorch bench trade --kind lj_box|rods|dla [--seeds N] [--quick] [--out DIR | --update-shipped]
     pyorch sweep SWEEP.toml [--workers N] [--scheduler ADDR] [--cluster local|slurm]
     pyorch dataset gns SPEC.toml [--workers N] [--scheduler ADDR] [--dry-run]
     pyorch dataset check DATASET_DIR
@@ -98,7 +99,11 @@ def _parser() -> argparse.ArgumentParser:
                    help="trade: every knob; bias: bias vs r_c; seeds: seed-averaged bias of "
                         "the production settings with standard errors")
     b.add_argument("--scene", type=Path, default=Path("runs/bench_compression.nml"))
-    b.add_argument("--seeds", type=int, default=3)
+    b.add_argument("--kind", default=None,
+                   help="trade: the kind's own studies (lj_box, rods, dla; default the bed's), "
+                        "each on its own scene (--scene, --workers and --reuse are the bed's)")
+    b.add_argument("--seeds", type=int, default=None,
+                   help="seeds per setting (default 3 for the bed, the study's own for a kind)")
     b.add_argument("--quick", action="store_true", help="4 settings only (smoke test)")
     b.add_argument("--workers", type=int, default=1,
                    help="engine processes at once (errors only: times are then contended)")
@@ -194,6 +199,17 @@ def _cmd_check(args: argparse.Namespace) -> int:
     scene = Scene.read(args.scene)  # the engine's reading: SceneError if refused
     if args.overrides:
         scene = scene.with_overrides(args.overrides)
+    if str(scene.get("scene", "kind", "magnet_bed")) != "magnet_bed":   # pyorch.trade's kinds
+        from pyorch import trade
+
+        kind_choice = trade.target_choice(scene)
+        if kind_choice is not None:
+            scene = scene.with_overrides(kind_choice.overrides(scene))
+        info = validate(scene if args.overrides or kind_choice else args.scene)
+        print(f"ok: {info['kind']}, {info['n_steps']} steps")
+        if kind_choice is not None:
+            print(kind_choice.text())
+        return 0
     choice = target_choice(scene)
     if choice is not None:
         scene = scene.with_overrides(overrides_for(choice.row))

@@ -44,7 +44,7 @@ OLD_KEYS = {
                       "frames_format"},
     "rods": {"scene": "kind title",
              "rods": "n m length inertia inertia_model v_init v_shift v_spread theta_init "
-                     "theta0 theta_spread omega0 omega_spread seed dt t_end",
+                     "theta0 theta_spread omega0 omega_spread seed dt t_end target_rel_error",
              "collisions": "enabled tau e_v e_w rotation",
              "mean_field": "potential alpha beta theta_hat onsager_force fourier_modes "
                            "onsager_bins",

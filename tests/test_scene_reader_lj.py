@@ -31,7 +31,7 @@ KEYS = {
               "ey", "kx", "ky", "omega", "phase", "power", "r0", "r_core", "modulation",
               "mod_omega", "mod_phase", "mod_time", "file"],
     "walls": ["gamma", "contact"],
-    "integration": ["method", "dt", "steps"],
+    "integration": ["method", "dt", "steps", "target_rel_error"],
     "output": ["frame_every", "energy_every", "checkpoint_every", "progress_every",
                "field_grid", "frames_format"],
 }

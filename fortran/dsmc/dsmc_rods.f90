@@ -52,6 +52,7 @@ module dsmc_rods
     real(dp) :: omega0 = 0.0_dp, omega_spread = 1.0_dp
     integer(i8) :: seed = 1
     real(dp) :: dt = 0.05_dp, t_end = 10.0_dp
+    real(dp) :: target_rel_error = 0        !< read by pyorch (trade table), ignored here
     ! &collisions
     logical :: collisions = .true.
     real(dp) :: tau = 1.0_dp
@@ -117,6 +118,9 @@ contains
     call s%key('dt', self%dt, 't0', 'step (<= t_end, <= tau with collisions, at most 1e12 '// &
          'steps)', lo=0.0_dp, lo_open=.true., hi=1.0e9_dp)
     call s%key('t_end', self%t_end, 't0', 'run length', lo=0.0_dp, lo_open=.true., hi=1.0e9_dp)
+    call s%key('target_rel_error', self%target_rel_error, '1', 'read by pyorch: the '// &
+         'cheapest measured setting meeting it (0 = off; the engine ignores it)', lo=0.0_dp, &
+         hi=1.0_dp)
     call s%group('collisions', 'Nanbu-Babovsky collisions by the rod law')
     call s%key('enabled', self%collisions, '', 'collisions on')
     call s%key('tau', self%tau, 't0', 'mean time between collisions of a sample', lo=0.0_dp, &

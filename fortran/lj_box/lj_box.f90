@@ -96,6 +96,7 @@ module lj_box
     character(len=nm) :: integrator = 'semi_implicit_euler'
     real(dp) :: dt = 1.0e-3_dp              !< [T]
     integer(i8) :: steps = 10000
+    real(dp) :: target_rel_error = 0        !< read by pyorch (trade table), ignored here
     ! &output (cadences in steps; 0 = file off)
     integer(i8) :: frame_every = 100, energy_every = 100
     integer(i8) :: field_grid = 0           !< field.dat: grid points per side (0 = off)
@@ -219,6 +220,9 @@ contains
          'Euler or velocity Verlet', choices=join(method_names))
     call s%key('dt', self%dt, 'T', 'time step', lo=0.0_dp, lo_open=.true., hi=1.0e3_dp)
     call s%key('steps', self%steps, 'steps', 'run length', lo=1_i8, hi=max_steps_all)
+    call s%key('target_rel_error', self%target_rel_error, '1', 'read by pyorch: the '// &
+         'cheapest measured setting meeting it (0 = off; the engine ignores it)', lo=0.0_dp, &
+         hi=1.0_dp)
     call s%group('output', 'cadences in steps (0 = file off)')
     call s%key('frame_every', self%frame_every, 'steps', 'frames rows (0 = off)', lo=0_i8, &
          hi=max_steps_all)
