@@ -31,7 +31,7 @@ import numpy as np
 import pandas as pd
 
 import common
-from pyorch.bench import measure
+from pyorch.bed.trade import measure
 from pyorch.run import run
 from pyorch.scene import Scene
 

@@ -24,7 +24,8 @@ from pathlib import Path
 import pandas as pd
 
 import common
-from pyorch.bench import Setting, bias_summary_text, trade_study
+from pyorch.bed.trade import Setting, trade_study
+from pyorch.bed.trade_report import bias_summary_text
 
 DTS = (2.0e-3, 4.0e-3, 8.0e-3)
 

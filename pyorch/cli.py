@@ -192,55 +192,31 @@ def _main(args: argparse.Namespace) -> int:
 
 def _cmd_check(args: argparse.Namespace) -> int:
     """Validate through the engine; with ``target_rel_error`` also the setting it would
-    choose (as ``pyorch run`` does) and the run-time estimate of the scene at that setting."""
-    from pyorch.bench import overrides_for, run_time_estimate, target_choice
+    choose (as ``pyorch run`` does) and, where the kind estimates one, the run time at it."""
+    from pyorch import trade
     from pyorch.scene import Scene, validate
 
     scene = Scene.read(args.scene)  # the engine's reading: SceneError if refused
     if args.overrides:
         scene = scene.with_overrides(args.overrides)
-    if str(scene.get("scene", "kind", "magnet_bed")) != "magnet_bed":   # pyorch.trade's kinds
-        from pyorch import trade
-
-        kind_choice = trade.target_choice(scene)
-        if kind_choice is not None:
-            scene = scene.with_overrides(kind_choice.overrides(scene))
-        info = validate(scene if args.overrides or kind_choice else args.scene)
-        print(f"ok: {info['kind']}, {info['n_steps']} steps")
-        if kind_choice is not None:
-            print(kind_choice.text())
-        return 0
-    choice = target_choice(scene)
-    if choice is not None:
-        scene = scene.with_overrides(overrides_for(choice.row))
+    tuned, choice = trade.apply_target(scene)
     # the user's file as it is unless pyorch changes it (then pyorch writes it again)
-    info = validate(scene if args.overrides or choice else args.scene)
+    info = validate(tuned if args.overrides or choice else args.scene)
     extra = f"{info['n_particles']} particles, " if "n_particles" in info else ""
     print(f"ok: {info['kind']}, {extra}{info['n_steps']} steps")
     if choice is not None:
-        print(choice.text())
-        est = run_time_estimate(choice.row, int(info.get("n_particles", 0)), int(info["n_steps"]))
-        print(f"estimated run time: {_duration(est)} at {choice.row['label']} (its time per step on "
-              f"the trade scene, scaled to {info.get('n_particles')} particles: one core of the "
-              f"machine that measured the table)")
+        print(choice)
+        for line in trade.check_lines(scene, info):
+            print(line)
     return 0
-
-
-def _duration(seconds: float) -> str:
-    """A wall time for people: 42 s, 3.5 min, 2.1 h."""
-    if seconds < 120:
-        return f"{seconds:.3g} s"
-    if seconds < 7200:
-        return f"{seconds / 60:.3g} min"
-    return f"{seconds / 3600:.3g} h"
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
     from pyorch.run import run
     from pyorch.scene import Scene
 
-    from pyorch.bench import apply_target
     from pyorch.run import resume
+    from pyorch.trade import apply_target
 
     if args.resume is not None:
         if args.scene is not None or args.overrides or args.out is not None or args.overwrite \

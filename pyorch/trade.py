@@ -12,7 +12,7 @@ the errors, their maximum ``err_max``), measures the limits through the engine's
 (``pyorch check``) or failures, and picks the cheapest measured row meeting a scene's
 ``target_rel_error``.
 
-``pyorch bench trade --kind KIND`` (the bed's study stays :mod:`pyorch.bench`): tables in
+``pyorch bench trade --kind KIND`` (the bed's study: :mod:`pyorch.bed.trade`): tables in
 runs/out/bench/ (``--out DIR`` elsewhere; ``--update-shipped`` replaces the shipped
 bench/results/trade_<study>.csv that ``target_rel_error`` chooses from).
 """
@@ -134,6 +134,8 @@ def studies(kind: str) -> tuple[Study, ...]:
         try:
             mod = importlib.import_module(k.package + ".trade")
         except ModuleNotFoundError:
+            continue
+        if not hasattr(mod, "STUDIES"):            # the bed's own study (pyorch.bed.trade)
             continue
         if name == kind:
             return tuple(mod.STUDIES)
@@ -491,12 +493,36 @@ def target_choice(scene: Scene, path: Path | None = None) -> Choice | None:
         raise SceneError(f"&{group} {name} = {target:g}: {exc}") from None
 
 
+def kind_trade(scene: Scene) -> Any:
+    """The scene's kind's ``trade`` module (None: the kind has none)."""
+    from pyorch import kinds
+
+    k = kinds.get(str(scene.get("scene", "kind", "magnet_bed")))
+    try:
+        return importlib.import_module(k.package + ".trade")
+    except ModuleNotFoundError:
+        return None
+
+
 def apply_target(scene: Scene, path: Path | None = None) -> tuple[Scene, str | None]:
-    """The scene with the chosen setting applied and the choice's text (None: no target)."""
+    """The scene with the chosen setting applied and the choice's text (None: no target);
+    a kind with its own ``apply_target`` (the bed) is asked instead of the studies here."""
+    own = kind_trade(scene)
+    if own is not None and hasattr(own, "apply_target"):
+        return own.apply_target(scene, path)
     choice = target_choice(scene, path)
     if choice is None:
         return scene, None
     return scene.with_overrides(choice.overrides(scene)), choice.text()
+
+
+def check_lines(scene: Scene, info: Mapping[str, Any]) -> list[str]:
+    """What ``pyorch check`` adds after the choice for a scene with target_rel_error: the
+    kind's own lines (the bed's run-time estimate), none for the studies here."""
+    own = kind_trade(scene)
+    if own is not None and hasattr(own, "check_lines"):
+        return list(own.check_lines(scene, dict(info)))
+    return []
 
 
 # ------------------------------------------------------------------------------ the command

@@ -7,7 +7,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from pyorch.bench import (Setting, apply_target, choose, overrides_for, pareto_front,
+from pyorch.bed.trade import (Setting, apply_target, choose, overrides_for, pareto_front,
                           resolved_errors, selection_table)
 from pyorch.scene import Scene
 

@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pyorch.bench import REFERENCE, Setting, energy_drift, trade_study
+from pyorch.bed.trade import REFERENCE, Setting, energy_drift, trade_study
 
 SMALL = {"particles.n": 60, "cell.width": 20.0, "cell.height": 30.0, "protocol.h_start": 30.0,
          "protocol.t_relax": 2.0, "protocol.h0": 25.0, "protocol.hf": 12.0,

@@ -70,7 +70,7 @@ def test_update_shipped_targets_bench_results() -> None:
 # ------------------------------------------------------------- a target below the table
 def _trade_table() -> pd.DataFrame:
     """Three measured settings and the reference (error 0 by definition)."""
-    from pyorch.bench import REFERENCE, Setting
+    from pyorch.bed.trade import REFERENCE, Setting
 
     rows = []
     for kw, t, e in ((dict(REFERENCE), 1.4e-4, 0.0), (dict(r_cut=14.0), 6.5e-5, 3.4e-3),
@@ -85,7 +85,7 @@ def test_target_below_the_table_is_said(tmp_path: Path) -> None:
     """target_rel_error = 1e-9 was taken silently: the reference (error 0 by definition) was
     chosen and reported as 'measured error 0'. The choice now says the target is below every
     error measured, which setting came closest and what the reference costs."""
-    from pyorch.bench import apply_target, reference_label
+    from pyorch.bed.trade import apply_target, reference_label
 
     _trade_table().to_csv(tmp_path / "trade.csv", index=False)
     scene = Scene.read(ROOT / "runs" / "demo.nml").set("integration", "target_rel_error", 1e-9)
@@ -109,7 +109,7 @@ def test_unreachable_target_or_missing_table_is_bad_input(tmp_path: Path) -> Non
     """No setting meets the target (and no reference row): SceneError naming the key (pyorch run
     exits 2), as for a missing table; it used to be a ValueError/FileNotFoundError traceback."""
     from pyorch import SceneError
-    from pyorch.bench import apply_target
+    from pyorch.bed.trade import apply_target
 
     t = _trade_table().iloc[1:]
     t.to_csv(tmp_path / "trade.csv", index=False)

@@ -11,8 +11,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 KIND_PACKAGES = ("pyorch.bed", "pyorch.dla", "pyorch.lj", "pyorch.rods", "pyorch.oscillator")
 #: shared modules still importing a kind, each with its reason (to remove, not to extend)
-ALLOWED = {("pyorch.bench", "pyorch.bed.analysis"):
-           "the trade study is the bed's until issue 27 puts every kind on it"}
+ALLOWED: dict[tuple[str, str], str] = {}
 #: a room one can hold in one's head; a longer file says why in its first REASON_LINES lines,
 #: in a line holding REASON_MARK ("longer than 600 lines because ...")
 MAX_LINES = 600
@@ -20,7 +19,7 @@ REASON_LINES = 20
 REASON_MARK = "longer than 600 lines because"
 #: longer files without the reason yet, each with why (to remove, not to extend; the test
 #: fails once such a file is short again, so that its entry goes)
-OVERSIZE = {"pyorch/bench.py": "the trade machinery, reworked on its own branch for issue 27"}
+OVERSIZE: dict[str, str] = {}
 
 
 def _modules(root: Path = ROOT) -> dict[str, Path]:

@@ -12,7 +12,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pyorch import SceneError, bench, trade
+from pyorch import SceneError, trade
+from pyorch.bed import trade as bench
 from pyorch.cli import main
 from pyorch.scene import Scene, key_specs
 
@@ -95,7 +96,7 @@ def test_target_in_an_lj_box_scene_is_applied_and_printed(tmp_path, capsys):
                       ({m: "velocity_verlet", dt: 4e-3, "steric.pair_eval": "table"}, 0.02,
                        3e-3)]).to_csv(path, index=False)
     scene = Scene.read(ROOT / "runs" / "lj_demo.nml").set("integration", "target_rel_error", 0.01)
-    new, text = bench.apply_target(scene, path)
+    new, text = trade.apply_target(scene, path)
     assert new.get("integration", "method") == "velocity_verlet"
     assert new.get("integration", "dt") == 4e-3 and new.get("steric", "pair_eval") == "table"
     # the same simulated time: 20000 steps of 1e-3 T -> 5000 of 4e-3 T, cadences alike
@@ -298,3 +299,13 @@ def test_seed_study_rows_keep_a_cost_beside_cpu_timed_rows():
     assert est["cpu_per_step_s"] == pytest.approx(3e-5 * 0.5) and "wall x 0.5" in est["source"]
     assert bench.choose(sel.reset_index(), 5e-3)["label"] == \
         bench.Setting.of(r_cut=3.0, tail="frozen").label()
+
+
+def test_the_shared_entry_point_asks_the_beds_own_study():
+    """pyorch.trade.apply_target (what `pyorch run` and `pyorch check` call) on a bed scene is
+    the bed's choice from its shipped table (issue 28: the shared layer knows no kind)."""
+    scene = Scene.read(ROOT / "runs" / "standard.nml").set("integration", "target_rel_error", 0.05)
+    shared, text = trade.apply_target(scene)
+    own, own_text = bench.apply_target(scene)
+    assert text is not None and text == own_text
+    assert shared.namelist() == own.namelist()

@@ -1,4 +1,5 @@
-"""The speed/accuracy trade, measured (user rule 1).
+"""The bed's speed/accuracy trade, measured (user rule 1; the entry points for every kind:
+:mod:`pyorch.bench`, :mod:`pyorch.trade`).
 
 ``trade_study`` runs one scene (default runs/bench_compression.nml: the
 standard bed compressed to maximum compression) over a grid of knobs
@@ -25,7 +26,8 @@ scheme as Stormer-Verlet up to round-off.
 
 ``choose`` picks the cheapest measured setting (CPU time per step where measured) meeting
 a target relative error; ``pyorch run`` uses it when a scene sets ``&integration
-target_rel_error``. The other kinds' studies: :mod:`pyorch.trade`.
+target_rel_error``. The other kinds' studies and the shared entry points (``pyorch.trade.apply_target``,
+``pyorch bench``): :mod:`pyorch.trade`, :mod:`pyorch.bench`.
 
 Reproduce: ``pyorch bench trade`` (about 10 minutes on one core), outputs in
 runs/out/bench/ (``--out DIR`` elsewhere; ``--update-shipped`` replaces the shipped tables
@@ -38,7 +40,6 @@ resolves biases below the ~1 % chaotic scatter of single runs.
 from __future__ import annotations
 
 import itertools
-import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Iterable, Sequence
@@ -315,44 +316,6 @@ def pareto_front(table: pd.DataFrame, err: str = "err_max") -> pd.DataFrame:
     return t.loc[keep]
 
 
-def pareto_plot(table: pd.DataFrame, path: Path, noise: float | None = None) -> Path:
-    """Time per step vs error, one marker per knob family (thesis Fig. 5.2, for every knob)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    t = table[table["threads"].eq(1)].dropna(subset=["err_max"])
-    fig, ax = plt.subplots(figsize=(7, 5))
-    fam = np.where(t["neighbour"].eq("all_pairs"), "all_pairs",
-                   np.where(t["tail"].eq("frozen"), "verlet + frozen tail",
-                            np.where(t["truncation"].eq("shifted_force"), "verlet shifted force",
-                                     t["neighbour"])))
-    if "pair_eval" in t.columns:          # a cheaper pair evaluation is its own family
-        ev = t["pair_eval"].fillna(BASELINE["pair_eval"]).astype(str)
-        fam = np.where(ev.eq(BASELINE["pair_eval"]), fam, "pair_eval " + ev)
-    for name in pd.unique(fam):
-        part = t[fam == name]
-        ax.scatter(part["time_per_step_s"] * 1e6, part["err_max"].clip(lower=1e-6), label=name, s=25)
-    for _, row in t.iterrows():
-        ax.annotate(row["label"], (row["time_per_step_s"] * 1e6, max(row["err_max"], 1e-6)),
-                    fontsize=5, alpha=0.7)
-    front = pareto_front(t)
-    ax.plot(front["time_per_step_s"] * 1e6, front["err_max"].clip(lower=1e-6), "k--", lw=0.8,
-            label="Pareto front")
-    if noise is not None:
-        ax.axhline(max(noise, 1e-6), color="grey", ls=":", label="round-off noise floor")
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.set_xlabel("wall time per step [us] (1 core)")
-    ax.set_ylabel("max relative error of F_max, D_hat vs O(N^2), smallest dt")
-    ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
-    return path
-
-
 def choose(table: pd.DataFrame, target_rel_error: float) -> pd.Series:
     """Cheapest measured setting whose F_max and D_hat errors are below the target
     (:func:`pyorch.trade.cheapest` over the one-thread rows, by time per step)."""
@@ -383,8 +346,9 @@ def overrides_for(row: pd.Series) -> dict[str, Any]:
     return out
 
 
-PACKAGED_TABLE = Path(__file__).resolve().parent / "data" / "trade.csv"
-PACKAGED_SEEDS = Path(__file__).resolve().parent / "data" / "seeds.csv"
+#: the tables shipped inside the package (pyorch/data/, copies of bench/results/)
+PACKAGED_TABLE = Path(__file__).resolve().parents[1] / "data" / "trade.csv"
+PACKAGED_SEEDS = Path(__file__).resolve().parents[1] / "data" / "seeds.csv"
 
 
 def default_table() -> Path:
@@ -537,11 +501,7 @@ def apply_target(scene: Scene, table_path: Path | None = None,
     """If the scene asks for target_rel_error, return it with the cheapest measured setting
     applied (:func:`target_choice`) and the description of the choice
     (:meth:`TargetChoice.text`: one line, a second one when the target is below what the
-    table measured). A kind other than the bed: :func:`pyorch.trade.apply_target`."""
-    if str(scene.get("scene", "kind", "magnet_bed")) != "magnet_bed":
-        from pyorch import trade
-
-        return trade.apply_target(scene, table_path)
+    table measured). :func:`pyorch.trade.apply_target` calls it for a bed's scene."""
     choice = target_choice(scene, table_path, seeds_path)
     if choice is None:
         return scene, None
@@ -555,6 +515,27 @@ def run_time_estimate(row: pd.Series, n_particles: int, n_steps: int) -> float:
     ratio = n_particles / TRADE_N
     scale = ratio**2 if row["neighbour"] == "all_pairs" else ratio
     return float(row["time_per_step_s"]) * scale * n_steps
+
+
+def check_lines(scene: Scene, info: dict[str, Any]) -> list[str]:
+    """``pyorch check``'s run-time estimate of a bed's scene that sets target_rel_error
+    (``info``: the engine's validation of it, with the choice applied); [] without a target."""
+    choice = target_choice(scene)
+    if choice is None:
+        return []
+    est = run_time_estimate(choice.row, int(info.get("n_particles", 0)), int(info["n_steps"]))
+    return [f"estimated run time: {_duration(est)} at {choice.row['label']} (its time per step "
+            f"on the trade scene, scaled to {info.get('n_particles')} particles: one core of the "
+            f"machine that measured the table)"]
+
+
+def _duration(seconds: float) -> str:
+    """A wall time for people: 42 s, 3.5 min, 2.1 h."""
+    if seconds < 120:
+        return f"{seconds:.3g} s"
+    if seconds < 7200:
+        return f"{seconds / 60:.3g} min"
+    return f"{seconds / 3600:.3g} h"
 
 
 def bias_study(base_path: Path, r_cuts: Sequence[float], seeds: Iterable[int], out_dir: Path,
@@ -573,141 +554,3 @@ def seed_grid() -> list[Setting]:
     reference (plus the reference itself at the production dt)."""
     return [Setting.of(r_cut=rc, tail="frozen") for rc in (3.0, 4.13, 5.0, 7.13)] + \
         [Setting.of(r_cut=7.13), Setting.of(neighbour="all_pairs")]
-
-
-def bias_summary_text(table: pd.DataFrame) -> str:
-    """Bias of each setting with its standard error and 95 % interval, in %."""
-    lines = [f"{'setting':40s} {'seeds':>5s} {'F_max bias %':>13s} {'+-sem':>6s} "
-             f"{'95 % interval':>17s} {'D_hat bias %':>13s} {'+-sem':>6s}"]
-    for _, r in table.iterrows():
-        if not np.isfinite(r.get("bias_F_max", np.nan)):
-            continue
-        b, s = 100 * r["bias_F_max"], 100 * r["sem_bias_F_max"]
-        lines.append(f"{r['label']:40s} {int(r['n_seeds']):5d} {b:+13.3f} {s:6.3f} "
-                     f"[{b - 1.96 * s:+7.3f}, {b + 1.96 * s:+7.3f}] "
-                     f"{100 * r['bias_D_hat']:+13.3f} {100 * r['sem_bias_D_hat']:6.3f}")
-    return "\n".join(lines)
-
-
-#: where ``pyorch bench`` writes by default (a user's measurement; relative to the working dir)
-USER_OUT = Path("runs") / "out" / "bench"
-#: the shipped tables (``target_rel_error`` chooses from trade.csv and seeds.csv here)
-SHIPPED_OUT = Path("bench") / "results"
-
-
-def bench_out(out: Path | None, update_shipped: bool, quick: bool) -> Path:
-    """Directory of a ``pyorch bench`` study: ``out``, else USER_OUT; SHIPPED_OUT only with
-    ``update_shipped``, never for a ``quick`` smoke test (SceneError otherwise, before
-    anything is run or written)."""
-    from pyorch import SceneError
-
-    if update_shipped:
-        if out is not None:
-            raise SceneError("pyorch bench: --update-shipped writes bench/results: no --out")
-        if quick:
-            raise SceneError("pyorch bench: --quick measures 4 settings only, a smoke test: "
-                             "its table cannot replace the shipped one (no --update-shipped)")
-        return SHIPPED_OUT
-    if out is None:
-        return USER_OUT
-    shipped = {SHIPPED_OUT.resolve(), PACKAGED_TABLE.parent.resolve()}
-    if out.resolve() in shipped:
-        raise SceneError(f"pyorch bench: --out {out} holds the shipped tables that "
-                         f"target_rel_error chooses from: write them with --update-shipped "
-                         f"(a full study), or choose another directory")
-    return out
-
-
-def main_bench(args: Any) -> int:
-    out = bench_out(getattr(args, "out", None), getattr(args, "update_shipped", False),
-                    getattr(args, "quick", False))
-    from pyorch import trade
-
-    kind = trade.check_kind(getattr(args, "kind", None), args.what)
-    if kind is not None:
-        return trade.main_trade(kind, out, getattr(args, "quick", False), args.seeds)
-    out.mkdir(parents=True, exist_ok=True)
-    seeds = list(range(1, (args.seeds or 3) + 1))
-    if args.what == "trade":
-        rows, table = trade_study(Path(args.scene), default_grid(args.quick), seeds, out / "trade",
-                                  workers=args.workers)
-        rows.to_csv(out / "trade_rows.csv", index=False)
-        table.to_csv(out / "trade.csv", index=False)
-        probe = rows[rows["label"].eq(noise_probe().label())]
-        noise = float(probe[["err_F_max", "err_D_hat"]].max(axis=1).mean()) if not probe.empty else None
-        pareto_plot(table, out / "trade_pareto.png", noise)
-        (out / "trade_meta.json").write_text(json.dumps({"noise_floor": noise, "seeds": seeds}))
-        cols = ["label", "time_per_step_s", "cpu_per_step_s", "pair_evals_per_s", "list_builds",
-                "err_F_max",
-                "err_D_hat", "err_n6", "bias_F_max", "E_drift"]
-        print(table[table["threads"].eq(1)][cols].to_string(index=False))
-        print(f"noise floor (reference in velocity-Verlet form): {noise}")
-    elif args.what == "seeds":
-        reuse = pd.read_csv(args.reuse) if args.reuse else None
-        rows, table = trade_study(Path(args.scene), seed_grid(), seeds, out / "seeds",
-                                  workers=args.workers, reuse=reuse, energy_probe_t=0.0)
-        rows.to_csv(out / "seeds_rows.csv", index=False)
-        table.to_csv(out / "seeds.csv", index=False)
-        seeds_plot(table, out / "seeds.png")
-        print(bias_summary_text(table))
-    else:
-        rows = bias_study(Path(args.scene), [3.0, 4.13, 5.0, 7.13, 10.0, 14.0], seeds, out / "bias",
-                          workers=args.workers)
-        rows.to_csv(out / "bias_rows.csv", index=False)
-        table = summarise(rows)
-        table.to_csv(out / "bias.csv", index=False)
-        bias_plot(table, out / "bias.png")
-        print(table[["label", "bias_F_max", "err_F_max", "bias_D_hat", "bias_n6",
-                     "time_per_step_s"]].to_string(index=False))
-    return 0
-
-
-def bias_plot(table: pd.DataFrame, path: Path) -> Path:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    t = table[table["neighbour"].eq("verlet")]
-    fig, axes = plt.subplots(1, 2, figsize=(9, 3.8))
-    for (tr, tl), part in t.groupby(["truncation", "tail"]):
-        part = part.sort_values("r_cut")
-        name = "frozen tail" if tl == "frozen" else tr
-        axes[0].plot(part["r_cut"], 100 * part["bias_F_max"], "o-", label=name)
-        axes[1].plot(part["r_cut"], 100 * part["bias_D_hat"], "o-", label=name)
-    for ax, what in zip(axes, ("F_max", "D_hat")):
-        ax.axhline(0, color="k", lw=0.6)
-        ax.set_xlabel("cut-off r_c [D1]")
-        ax.set_ylabel(f"bias of {what} vs O(N^2) [%]")
-    axes[0].legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
-    return path
-
-
-def seeds_plot(table: pd.DataFrame, path: Path, target: float = 0.005) -> Path:
-    """Seed-averaged bias of F_max and D_hat per setting with 95 % intervals
-    (1.96 standard errors), against the +-target band."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    t = table.dropna(subset=["bias_F_max"]).sort_values("bias_F_max").reset_index(drop=True)
-    fig, axes = plt.subplots(1, 2, figsize=(10, 0.45 * len(t) + 1.6), sharey=True)
-    ypos = np.arange(len(t))
-    for ax, what in zip(axes, ("F_max", "D_hat")):
-        ax.errorbar(100 * t[f"bias_{what}"], ypos, xerr=196 * t[f"sem_bias_{what}"], fmt="o",
-                    capsize=3)
-        ax.axvline(0, color="k", lw=0.6)
-        ax.axvspan(-100 * target, 100 * target, color="green", alpha=0.12,
-                   label=f"+-{100 * target:g} %")
-        ax.set_xlabel(f"bias of {what} vs O(N^2), dt 5e-4 [%] (95 % interval)")
-    axes[0].set_yticks(ypos, [f"{lab} ({int(n)} seeds)" for lab, n in zip(t["label"], t["n_seeds"])],
-                       fontsize=7)
-    axes[0].legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
-    return path
