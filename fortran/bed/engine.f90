@@ -1,4 +1,7 @@
 !> The engine: load a scene, compute forces (with the runtime guards), step.
+!> Longer than 600 lines because the step and the guards that stop it (a crush, the piston
+!> leaving, a failed settle, non-finite forces) are one sequence over the same state; the
+!> guards' diagnostics (~150 lines) are the part to move to a submodule if it grows.
 !> Running a whole scene into a run directory is module runner's job.
 module engine
   use, intrinsic :: iso_fortran_env, only: output_unit

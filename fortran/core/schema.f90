@@ -1,25 +1,20 @@
 !> One scene reader for every kind, driven by the kind's declaration of its keys.
 !>
-!> A kind declares each namelist group and key once (name, type, shape,
-!> range or choices, unit, one-line doc), binding the key to the variable
-!> that holds it (its default is that variable's value at declaration):
+!> A kind declares each namelist group and key once (name, type, shape, range or choices,
+!> unit, one-line doc), binding the key to the variable that holds it (its default is that
+!> variable's value at declaration):
 !>
 !>   call s%group('oscillator', 'the oscillators and their integration')
 !>   call s%key('omega', self%omega, 'rad/tau', 'natural angular frequency', lo=0.0_dp, lo_open=.true.)
 !>
-!> The same declaration then drives
-!>   - reading (`read`): a quote-aware tokenizer; unknown or repeated groups
-!>     and keys, indices out of range, wrong types, non-finite reals, repeat
-!>     counts, text outside groups and strings that are not UTF-8 are refused
-!>     naming the file, the line and what is allowed;
-!>   - validation (`validate`): every key's range or choices (rules across
-!>     keys stay a few lines in the kind);
-!>   - the resolved scene (`text`): every key with its value, unit and doc,
-!>     reals with every digit, strings quoted so that they round-trip;
-!>   - the documentation (`describe`: a table; `json`: for pyorch's checks).
+!> The same declaration drives reading (`read`, the submodule schema_read: every refusal names
+!> the file, the line and what is allowed), validation (`validate`: every key's range or
+!> choices; rules across keys stay a few lines in the kind), the resolved scene (`text`: every
+!> key with its value, unit and doc, reals with every digit, strings that round-trip) and the
+!> documentation (`describe`: a table; `json`: for pyorch's checks).
 !>
-!> The bindings are pointers to the kind's variables: a schema is built,
-!> used and dropped inside one call on a TARGET object (never kept).
+!> The bindings are pointers to the kind's variables: a schema is built, used and dropped
+!> inside one call on a TARGET object (never kept).
 module schema
   use, intrinsic :: iso_c_binding, only: c_loc, c_f_pointer
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
@@ -99,14 +94,17 @@ module schema
       character(len=*), intent(in) :: path
       type(status_t), intent(inout) :: st
     end subroutine schema_read
-    !> Index of group%key in s%keys (0: none). A separate module procedure because the
-    !> reader calls it too: gfortran 12 gives a private module procedure no external symbol,
-    !> so a submodule calling one fails to link ("undefined reference to __schema_MOD_...").
+    !> Index of group%key in s%keys (0: none); separate, the reader needs it (schema_read.f90)
     module function find_key(s, group, name) result(k)
       class(schema_t), intent(in) :: s
       character(len=*), intent(in) :: group, name
       integer :: k
     end function find_key
+    !> Line of group%key's assignment in the file read (0: not given).
+    module integer function line_of(s, group, name)
+      class(schema_t), intent(in) :: s
+      character(len=*), intent(in) :: group, name
+    end function line_of
   end interface
 
 contains
@@ -276,16 +274,6 @@ contains
   end subroutine finish_key
 
   ! ---------------------------------------------------------------- queries
-
-  !> Line of group%key's assignment in the file read (0: not given).
-  integer function line_of(s, group, name)
-    class(schema_t), intent(in) :: s
-    character(len=*), intent(in) :: group, name
-    integer :: k
-    k = find_key(s, group, name)
-    line_of = 0
-    if (k > 0) line_of = s%keys(k)%line
-  end function line_of
 
   !> '&a &b &c' (messages).
   function group_names(s) result(r)

@@ -7,6 +7,10 @@
 !> what is allowed: text outside groups, unknown, foreign or repeated groups,
 !> unknown keys, indices out of range or on scalars, wrong types, non-finite
 !> reals, repeat counts (`3*0.1`) and strings that are not UTF-8.
+!>
+!> find_key and line_of are separate module procedures (declared in schema.f90), not private
+!> ones: gfortran 12 gives a private module procedure no external symbol, so a submodule that
+!> calls one fails to link ("undefined reference to __schema_MOD_...").
 submodule (schema) schema_reader
   implicit none
 
@@ -534,5 +538,14 @@ contains
     end do
     k = 0
   end function find_key
+
+  module integer function line_of(s, group, name)
+    class(schema_t), intent(in) :: s
+    character(len=*), intent(in) :: group, name
+    integer :: k
+    k = find_key(s, group, name)
+    line_of = 0
+    if (k > 0) line_of = s%keys(k)%line
+  end function line_of
 
 end submodule schema_reader

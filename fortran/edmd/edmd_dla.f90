@@ -1,4 +1,7 @@
 !> Kind 'dla': hard disks in a closed box, event-driven (module edmd_core),
+!> Longer than 600 lines because the kind is one type: its key declarations, the rules
+!> across keys that keep the event arithmetic exact (validate_radii: ~90 lines), the initial
+!> state, the rows and the checkpoint; the event machinery is edmd_core.
 !> aggregating on a static seed disk at the centre (diffusion-limited or
 !> ballistic aggregation, depending on the mean free path; seed 004).
 !>

@@ -1,4 +1,7 @@
 !> Kind 'lj_box' (seed 000): N particles of radius a in the box [0, L]^2,
+!> Longer than 600 lines because the kind is one type: its key declarations (keys: ~110
+!> lines, bound to the type's own components), the rules across keys, the initial state, the
+!> step and the rows; the physics is elsewhere (pair_forces, fields, mirror_walls, friction).
 !>   dv/dt = -(9/2) alpha v + F_ext(x, t) + F_steric,   dx/dt = v          (eq. 6)
 !> with the truncated Lennard-Jones steric law (eqs. 3-5, 8-9; pair_forces' lj_law_t, through
 !> the bed's neighbour strategies and threaded passes), Stokes drag (friction's viscous term
