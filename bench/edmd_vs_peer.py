@@ -17,6 +17,10 @@ beside it. Ours also has wall hits and cell crossings, the peer cell crossings (
 neighbour-list rebuilds (Single, Multi): each engine's own way to a collision is part of
 its cost, so the cost compared is per pair collision.
 
+``--ours-base EXE`` adds another build of ours (e.g. the main branch's partsim) as a
+configuration of the same run; its events must equal ours (checked).
+``--collisions-large`` sets a shorter run from N >= 5e5 on (the cost per collision, not the
+run length, is compared).
 Each N: the peer's variants are built (bench/edmd_peer/build.sh, our compiler flags
 -O3 -march=native; ``--peer-own-flags`` adds each variant built with its Makefile's flags as
 a fifth and further configuration), then ``--repeat`` rounds run every configuration once,
@@ -125,12 +129,16 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--ours", default=str(common.REPO / ".venv" / "bin" / "partsim"))
+    ap.add_argument("--ours-base", default=None,
+                    help="also this executable of ours (e.g. the main branch's partsim)")
     ap.add_argument("--calendar", default="buckets")
     ap.add_argument("--sizes", type=float, nargs="+", default=[1e3, 1e4, 1e5, 1e6],
                     help="target N (rounded to 4 k^3)")
     ap.add_argument("--eta", type=float, default=0.25, help="packing fraction (both)")
     ap.add_argument("--collisions", type=float, default=50.0,
                     help="pair collisions per particle (default 50: each in ~100)")
+    ap.add_argument("--collisions-large", type=float, default=None,
+                    help="pair collisions per particle from N >= 5e5 on (default: --collisions)")
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--repeat-large", type=int, default=None,
                     help="repeats from N >= 5e5 on (default: --repeat)")
@@ -147,10 +155,14 @@ def main() -> None:
         r_peer = rate_peer(args.eta, tmp)
         print(f"pair collisions per particle per tau: ours (2D) {r_ours:.4f}, "
               f"peer (3D) {r_peer:.4f}", flush=True)
-        t_ours = args.collisions / r_ours
-        t_peer = args.collisions / r_peer
         for n in fcc_sizes(args.sizes):
+            coll = args.collisions
+            if args.collisions_large is not None and n >= 500000:
+                coll = args.collisions_large
+            t_ours, t_peer = coll / r_ours, coll / r_peer
             configs: list[tuple[str, str, Path | None]] = [("ours", args.calendar, None)]
+            if args.ours_base is not None:
+                configs.append(("ours-base", args.calendar, Path(args.ours_base)))
             for v in args.variants:
                 configs.append(("peer", v, build_peer(v, n, args.eta, t_peer,
                                                       tmp / f"{v}_{n}", None)))
@@ -168,13 +180,25 @@ def main() -> None:
                 for k in order:
                     engine, variant, exe = configs[k]
                     la = os.getloadavg()[0]
-                    got = (run_ours(args.ours, n, args.eta, t_ours, args.calendar, tmp,
-                                    f"ours_{n}") if exe is None else run_peer(exe))
+                    if engine == "ours":
+                        got = run_ours(args.ours, n, args.eta, t_ours, args.calendar, tmp,
+                                       f"ours_{n}")
+                    elif engine == "ours-base":
+                        got = run_ours(str(exe), n, args.eta, t_ours, args.calendar, tmp,
+                                       f"base_{n}")
+                    else:
+                        got = run_peer(exe)
                     got["load"] = la
                     print(f"N={n} {engine} {variant}: {got['loop_cpu_s']:.3f} s CPU, "
                           f"{got['collisions']} collisions, load {la:.2f}", flush=True)
                     if k not in best or got["loop_cpu_s"] < best[k]["loop_cpu_s"]:
                         best[k] = got
+            for k, (engine, variant, _) in enumerate(configs):
+                same = ("collisions", "events", "cell_crossings")
+                if engine == "ours-base" and any(best[k][c] != best[0][c] for c in same):
+                    raise RuntimeError(f"N={n}: ours-base events differ from ours: "
+                                       f"{[best[k][c] for c in same]} against "
+                                       f"{[best[0][c] for c in same]}")
             ours_cost = best[0]["loop_cpu_s"] / best[0]["collisions"]
             for k, (engine, variant, _) in enumerate(configs):
                 b = best[k]

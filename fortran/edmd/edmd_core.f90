@@ -43,7 +43,7 @@ module edmd_core
   use edmd_heap, only: heap_t, heap_init, heap_set, heap_remove, heap_top
   use edmd_buckets, only: bq_t, bq_entry_t, bq_init, bq_set, bq_remove, bq_top
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
-  use, intrinsic :: iso_c_binding, only: c_int
+  use, intrinsic :: iso_c_binding, only: c_int, c_int64_t
   implicit none
   private
 
@@ -135,6 +135,12 @@ module edmd_core
       import :: c_int
       integer(c_int), intent(in) :: x
     end subroutine prefetch
+    !> Transparent huge pages for the bytes from x on (edmd_prefetch.c: madvise; a hint).
+    subroutine huge_pages(x, bytes) bind(c, name='edmd_huge_pages')
+      import :: c_int, c_int64_t
+      integer(c_int), intent(in) :: x
+      integer(c_int64_t), intent(in) :: bytes
+    end subroutine huge_pages
   end interface
 
 contains
@@ -472,10 +478,24 @@ contains
       s%bq%hints = s%n >= prefetch_min_n
     case default; return
     end select
+    call advise_huge_pages(s)
     do i = 1, s%n
       if (s%state(i) == state_free) call predict(s, i)
     end do
   end subroutine ed_start
+
+  !> Huge pages for the arrays the event loop reads at random places (records, entries, cell
+  !> and bucket heads; arrays under 2 MiB are left alone): fewer TLB misses at large N, the
+  !> same events (bench/RESULTS.md s. 32).
+  subroutine advise_huge_pages(s)
+    type(ed_t), intent(inout) :: s
+    if (s%n == 0) return
+    call huge_pages(s%d(1)%next, int(storage_size(s%d)/8, c_int64_t)*s%n)
+    call huge_pages(s%p(1)%next, int(storage_size(s%p)/8, c_int64_t)*s%n)
+    call huge_pages(s%head(0), int(storage_size(s%head)/8, c_int64_t)*size(s%head))
+    if (s%calendar == cal_buckets) call huge_pages(s%bq%head(0), &
+         int(storage_size(s%bq%head)/8, c_int64_t)*size(s%bq%head))
+  end subroutine advise_huge_pages
 
   ! ---------------------------------------------------------------- calendar
   !> Entry of disk i at time t [tau] (s%p(i)%key = t).
