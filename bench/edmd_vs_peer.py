@@ -10,7 +10,8 @@ the packing fraction (0.25 by default: a fluid in both dimensions), unit diamete
 kT (the same unit of time, sigma sqrt(m / kT)), and the number of pair collisions per particle
 (``--collisions``, default 50 pair collisions per particle = each particle in ~100
 collisions; the run length of each engine is set from a short pilot run of its collision
-rate). Reported: the CPU seconds of each engine's event loop (ours: run.json
+rate; at least ``--min-collisions`` = 2e6 per run, so 2 300 per particle at N = 864, for
+the timer's resolution and the warm-up of the caches). Reported: the CPU seconds of each engine's event loop (ours: run.json
 event_loop_cpu_seconds; the peer: CLOCK_PROCESS_CPUTIME_ID around its main loop, a
 build-time change of bench/edmd_peer/build.sh), per pair collision; the process wall time
 beside it. Ours also has wall hits and cell crossings, the peer cell crossings (Cell) or
@@ -137,6 +138,9 @@ def main() -> None:
     ap.add_argument("--eta", type=float, default=0.25, help="packing fraction (both)")
     ap.add_argument("--collisions", type=float, default=50.0,
                     help="pair collisions per particle (default 50: each in ~100)")
+    ap.add_argument("--min-collisions", type=float, default=2e6,
+                    help="at least this many pair collisions per run (timer resolution and "
+                    "warm-up at small N; default 2e6)")
     ap.add_argument("--collisions-large", type=float, default=None,
                     help="pair collisions per particle from N >= 5e5 on (default: --collisions)")
     ap.add_argument("--repeat", type=int, default=3)
@@ -159,6 +163,7 @@ def main() -> None:
             coll = args.collisions
             if args.collisions_large is not None and n >= 500000:
                 coll = args.collisions_large
+            coll = max(coll, args.min_collisions / n)
             t_ours, t_peer = coll / r_ours, coll / r_peer
             configs: list[tuple[str, str, Path | None]] = [("ours", args.calendar, None)]
             if args.ours_base is not None:
