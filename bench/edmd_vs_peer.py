@@ -29,6 +29,12 @@ the order rotated each round, and the fastest repeat of each is kept. The ratio 
 cost per collision over ours (> 1: ours faster); cost_over_first is the cost per collision
 relative to the first N (the cost growth).
 Output: bench/results/edmd_vs_peer.csv (or --out NAME.csv).
+
+With ``--instructions`` the cost is counted, not timed (independent of the load): callgrind's
+instruction total of two run lengths of each engine, their difference over the extra pair
+collisions (set-up and the peer's melting of its FCC start removed). valgrind 3.19 does not
+run AVX-512 code, so ours must be a generic build (PYORCH_NATIVE=0, passed as --ours) and
+the peer is built with -O3 (no -march=native). Output: edmd_vs_peer_instructions.csv.
 """
 from __future__ import annotations
 
@@ -126,6 +132,51 @@ def rate_peer(eta: float, tmp: Path) -> float:
     return r["collisions"] / (864 * r["simtime"])
 
 
+def callgrind(cmd: list[str], cwd: Path | None = None) -> tuple[int, str]:
+    """Instructions executed by one command (callgrind's 'Collected'), and its stderr."""
+    p = subprocess.run(["valgrind", "--tool=callgrind", "--callgrind-out-file=/dev/null", *cmd],
+                       cwd=cwd, capture_output=True, text=True,
+                       env={"OMP_NUM_THREADS": "1", "PATH": "/usr/bin:/bin"})
+    m = re.search(r"Collected\s*:\s*(\d+)", p.stderr)
+    if p.returncode != 0 or m is None:
+        raise RuntimeError(f"{cmd[0]} under callgrind: exit {p.returncode}: {p.stderr[-500:]}")
+    return int(m.group(1)), p.stderr
+
+
+def instruction_rows(args: argparse.Namespace, tmp: Path, r_ours: float,
+                     r_peer: float) -> list[dict]:
+    """Instructions per pair collision of ours and each peer variant at each N."""
+    rows = []
+    for n in fcc_sizes(args.sizes):
+        coll = max(args.collisions, args.min_collisions / n)
+        counts: dict[tuple[str, str], list[tuple[int, int]]] = {}
+        for f in (1, 2):
+            t = f * coll / r_ours
+            scene = patched(GAS, gas_overrides(n, args.eta, t, args.calendar),
+                            tmp / f"cg_{n}_{f}.nml")
+            ins, _ = callgrind([args.ours, str(scene), "--out", str(tmp / f"cg_{n}_{f}"),
+                                "--quiet", "--overwrite"])
+            meta = json.loads((tmp / f"cg_{n}_{f}" / "run.json").read_text())
+            counts.setdefault(("ours", args.calendar), []).append((ins, int(meta["events_pair"])))
+            for v in args.variants:
+                exe = build_peer(v, n, args.eta, f * coll / r_peer, tmp / f"cg_{v}_{n}_{f}",
+                                 "-O3")
+                ins, err = callgrind([str(exe)], cwd=exe.parent)
+                m = LOOP.search(err)
+                if m is None:
+                    raise RuntimeError(f"{exe}: no loop line under callgrind")
+                counts.setdefault(("peer", v), []).append((ins, int(m.group(3))))
+        ours = None
+        for (engine, variant), ((i1, c1), (i2, c2)) in counts.items():
+            per = (i2 - i1) / (c2 - c1)
+            ours = per if ours is None else ours
+            rows.append({"N": n, "engine": engine, "variant": variant,
+                         "instructions_per_collision": per, "ratio": per / ours,
+                         "collisions_short": c1, "collisions_long": c2})
+        print(pd.DataFrame(rows[-len(counts):]).to_string(index=False), flush=True)
+    return rows
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -149,7 +200,10 @@ def main() -> None:
     ap.add_argument("--variants", nargs="+", default=list(VARIANTS))
     ap.add_argument("--peer-own-flags", action="store_true",
                     help=f"also each variant built with its Makefile's flags ({PEER_OWN_FLAGS})")
-    ap.add_argument("--out", default="edmd_vs_peer.csv")
+    ap.add_argument("--instructions", action="store_true",
+                    help="callgrind instructions per collision (ours: a generic build)")
+    ap.add_argument("--out", default=None, help="table name in bench/results (default "
+                    "edmd_vs_peer.csv, edmd_vs_peer_instructions.csv with --instructions)")
     args = ap.parse_args()
     print(common.machine_line(), flush=True)
     rows = []
@@ -159,6 +213,10 @@ def main() -> None:
         r_peer = rate_peer(args.eta, tmp)
         print(f"pair collisions per particle per tau: ours (2D) {r_ours:.4f}, "
               f"peer (3D) {r_peer:.4f}", flush=True)
+        if args.instructions:
+            common.save_table(pd.DataFrame(instruction_rows(args, tmp, r_ours, r_peer)),
+                              args.out or "edmd_vs_peer_instructions.csv")
+            return
         for n in fcc_sizes(args.sizes):
             coll = args.collisions
             if args.collisions_large is not None and n >= 500000:
@@ -224,7 +282,7 @@ def main() -> None:
     first = df.groupby(["engine", "variant"])["us_per_collision"].transform("first")
     df["cost_over_first"] = df["us_per_collision"] / first
     pd.set_option("display.float_format", lambda v: f"{v:.4g}")
-    common.save_table(df, args.out)
+    common.save_table(df, args.out or "edmd_vs_peer.csv")
     print(common.machine_line())
 
 
