@@ -43,7 +43,7 @@ module edmd_core
   use edmd_heap, only: heap_t, heap_init, heap_set, heap_remove, heap_top
   use edmd_buckets, only: bq_t, bq_entry_t, bq_init, bq_set, bq_remove, bq_top
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
-  use, intrinsic :: iso_c_binding, only: c_int
+  use, intrinsic :: iso_c_binding, only: c_int, c_int64_t
   implicit none
   private
 
@@ -135,6 +135,12 @@ module edmd_core
       import :: c_int
       integer(c_int), intent(in) :: x
     end subroutine prefetch
+    !> Transparent huge pages for the bytes from x on (edmd_prefetch.c: madvise; a hint).
+    subroutine huge_pages(x, bytes) bind(c, name='edmd_huge_pages')
+      import :: c_int, c_int64_t
+      integer(c_int), intent(in) :: x
+      integer(c_int64_t), intent(in) :: bytes
+    end subroutine huge_pages
   end interface
 
 contains
@@ -472,10 +478,24 @@ contains
       s%bq%hints = s%n >= prefetch_min_n
     case default; return
     end select
+    call advise_huge_pages(s)
     do i = 1, s%n
       if (s%state(i) == state_free) call predict(s, i)
     end do
   end subroutine ed_start
+
+  !> Huge pages for the arrays the event loop reads at random places (records, entries, cell
+  !> and bucket heads; arrays under 2 MiB are left alone): fewer TLB misses at large N, the
+  !> same events (bench/RESULTS.md s. 32).
+  subroutine advise_huge_pages(s)
+    type(ed_t), intent(inout) :: s
+    if (s%n == 0) return
+    call huge_pages(s%d(1)%next, int(storage_size(s%d)/8, c_int64_t)*s%n)
+    call huge_pages(s%p(1)%next, int(storage_size(s%p)/8, c_int64_t)*s%n)
+    call huge_pages(s%head(0), int(storage_size(s%head)/8, c_int64_t)*size(s%head))
+    if (s%calendar == cal_buckets) call huge_pages(s%bq%head(0), &
+         int(storage_size(s%bq%head)/8, c_int64_t)*size(s%bq%head))
+  end subroutine advise_huge_pages
 
   ! ---------------------------------------------------------------- calendar
   !> Entry of disk i at time t [tau] (s%p(i)%key = t).
@@ -578,40 +598,50 @@ contains
     end if
   end subroutine wall_time
 
-  !> .true. if disk a in cell (cx, cy) moves towards a wall its cell touches.
-  pure logical function towards_wall(s, a, cx, cy)
-    type(ed_t), intent(in) :: s
-    type(disk_t), intent(in) :: a
-    integer, intent(in) :: cx, cy
-    towards_wall = (a%vx < 0.0_dp .and. cx == 0) .or. (a%vx > 0.0_dp .and. cx == s%ncx - 1) &
-         .or. (a%vy < 0.0_dp .and. cy == 0) .or. (a%vy > 0.0_dp .and. cy == s%ncy - 1)
-  end function towards_wall
-
   !> Earliest cell-crossing time and direction (1 x-, 2 x+, 3 y-, 4 y+) of free disk i in
-  !> cell (cx, cy).
-  pure subroutine cross_time(s, i, cx, cy, tx, d)
+  !> cell (cx, cy), and whether it moves towards a wall its cell touches (no crossing that
+  !> way: the border cell's edge is the wall's side).
+  pure subroutine cross_time(s, i, cx, cy, tx, d, towards_wall)
     type(ed_t), intent(in) :: s
     integer, intent(in) :: i, cx, cy
     real(dp), intent(out) :: tx
     integer, intent(out) :: d
+    logical, intent(out) :: towards_wall
     real(dp) :: t1
     associate (a => s%d(i))
       tx = never
       d = 0
-      if (a%vx > 0.0_dp .and. cx < s%ncx - 1) then
-        tx = a%tl + reach((cx + 1)*s%wx, a%x, a%vx); d = 2
-      else if (a%vx < 0.0_dp .and. cx > 0) then
-        tx = a%tl + reach(cx*s%wx, a%x, a%vx); d = 1
-      end if
-      if (a%vy > 0.0_dp .and. cy < s%ncy - 1) then
-        t1 = a%tl + reach((cy + 1)*s%wy, a%y, a%vy)
-        if (t1 < tx) then
-          tx = t1; d = 4
+      towards_wall = .false.
+      if (a%vx > 0.0_dp) then
+        if (cx < s%ncx - 1) then
+          tx = a%tl + reach((cx + 1)*s%wx, a%x, a%vx); d = 2
+        else
+          towards_wall = .true.
         end if
-      else if (a%vy < 0.0_dp .and. cy > 0) then
-        t1 = a%tl + reach(cy*s%wy, a%y, a%vy)
-        if (t1 < tx) then
-          tx = t1; d = 3
+      else if (a%vx < 0.0_dp) then
+        if (cx > 0) then
+          tx = a%tl + reach(cx*s%wx, a%x, a%vx); d = 1
+        else
+          towards_wall = .true.
+        end if
+      end if
+      if (a%vy > 0.0_dp) then
+        if (cy < s%ncy - 1) then
+          t1 = a%tl + reach((cy + 1)*s%wy, a%y, a%vy)
+          if (t1 < tx) then
+            tx = t1; d = 4
+          end if
+        else
+          towards_wall = .true.
+        end if
+      else if (a%vy < 0.0_dp) then
+        if (cy > 0) then
+          t1 = a%tl + reach(cy*s%wy, a%y, a%vy)
+          if (t1 < tx) then
+            tx = t1; d = 3
+          end if
+        else
+          towards_wall = .true.
         end if
       end if
     end associate
@@ -712,10 +742,11 @@ contains
     integer, intent(in) :: i
     real(dp) :: tb, tc
     integer :: kb, pb, w, cx, cy
+    logical :: walls
     call cell_xy(s, s%d(i)%cell, cx, cy)
-    call cross_time(s, i, cx, cy, tb, pb)
+    call cross_time(s, i, cx, cy, tb, pb, walls)
     kb = ev_cell
-    if (tb >= never .or. towards_wall(s, s%d(i), cx, cy)) then
+    if (tb >= never .or. walls) then
       call wall_time(s%d(i), s%lx, s%ly, tc, w)
       if (earlier(tc, ev_wall, w, tb, kb, pb)) then
         tb = tc; kb = ev_wall; pb = w
