@@ -1,4 +1,7 @@
 !> Event-driven dynamics of hard disks in a closed rectangular box
+!> Longer than 600 lines because the event loop, the predictions and the cell crossings it
+!> calls per event are one compilation unit: gfortran inlines them only within a file (no
+!> LTO in this build), and the per-event cost is the method's speed (bench/RESULTS.md s. 32).
 !> [0, lx] x [0, ly], with an aggregate of static disks (infinite mass) that
 !> free disks stick to (or bounce off).
 !>
