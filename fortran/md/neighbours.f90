@@ -75,7 +75,7 @@ contains
     allocate(nl%cell_start(nl%ncx*nl%ncy + 1), nl%cell_part(n), nl%start(n + 1), &
          nl%xref(n), nl%yref(n))
     if (allocated(nl%nbr)) deallocate(nl%nbr)
-    allocate(nl%nbr(max(16, 8*n)))
+    allocate(nl%nbr(max(16, 8*n)), source=0)   ! zeroed: checkpoints save it whole (reproducible)
     nl%valid = .false.
     nl%builds = 0
   end subroutine nlist_setup
@@ -246,7 +246,7 @@ contains
     total = nl%start(n + 1) - 1
     if (total > size(nl%nbr)) then
       deallocate(nl%nbr)
-      allocate(nl%nbr(total + total/4 + 16))
+      allocate(nl%nbr(total + total/4 + 16), source=0)
     end if
 
     !$omp parallel do if (n >= par_min_loop) schedule(static) private(i, dummy)
