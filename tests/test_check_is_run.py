@@ -53,3 +53,29 @@ def test_a_rods_scene_larger_than_the_memory_is_refused_at_check(tmp_path):
     assert p.returncode == 2, p.stderr
     assert f"{path}: &rods n = 200000000: the run needs about 19" in p.stderr
     assert "(ulimit -v): reduce n" in p.stderr
+
+
+@pytest.mark.parametrize("kind,text,named", [
+    ("lj_box", "&scene kind = 'lj_box' /\n&box l = 40000.0 /\n"
+               "&particles n = 10000000, placement = 'lattice' /\n", "&particles n = 10000000"),
+    ("dla", "&scene kind = 'dla' /\n&box lx = 5605.0, ly = 5605.0 /\n"
+            "&disks count = 10000000, radius = 0.5 /\n"
+            "&aggregate sticking = .false., seed_radius = 0.0 /\n", "&disks count = 10000000"),
+])
+def test_an_lj_box_or_dla_scene_larger_than_the_memory_is_refused_at_check(tmp_path, kind, text,
+                                                                           named):
+    """1e7 particles (~3 GB) under a 1 GB address-space limit: refused at check, naming the key,
+    the estimate and the limit, before anything is allocated (these kinds had no estimate: the
+    run died in an allocation instead)."""
+    import resource
+
+    path = tmp_path / f"{kind}.nml"
+    path.write_text(text)
+
+    def limit() -> None:
+        resource.setrlimit(resource.RLIMIT_AS, (2**30, 2**30))
+
+    p = subprocess.run([str(engine_executable()), str(path), "--check"], capture_output=True,
+                       text=True, timeout=60, preexec_fn=limit)
+    assert p.returncode == 2, p.stderr
+    assert f"{path}: {named}: the run needs about" in p.stderr and "reduce" in p.stderr

@@ -15,6 +15,7 @@ module lj_box
   use kinds, only: dp, i8
   use errors, only: status_t, set_error, exit_bad_input, exit_io, exit_numerical
   use method, only: method_t
+  use memory, only: check_memory_need
   use tables, only: rfmt
   use frames, only: json_real
   use output_set, only: due, frames_as
@@ -302,6 +303,11 @@ contains
     else if (trim(self%field_type) == 'table' .and. len_trim(self%field_file) == 0) then
       call fail('field', 'file', 'file: required with type = ''table'' (a tabulated field)')
     end if
+    if (st%code /= 0) return
+    ! peak memory: state, lists, cells and a frame's buffer, measured 255 B a particle at
+    ! n = 1e6 (RSS), with a margin: refused before anything is allocated
+    call check_memory_need(320.0_dp*real(self%n, dp) + 32.0_dp*2.0_dp**20, trim(path)// &
+         ': &particles n = '//int_str(self%n), 'reduce n', st)
     if (st%code /= 0) return
     self%fl%shape = choice_index(self%field_type, field_shapes) - 1       ! codes from 0
     self%fl%modulation = choice_index(self%modulation, field_modulations) - 1
