@@ -269,6 +269,7 @@ contains
     u = r**2
     if (law == 1) then
       call dipole_eval_build(ev, a, r_lo**2, r_hi**2, requested, t, ok)
+      tab = 1   ! the weights dipole_eval multiplies
       call dipole_eval(n, u, a, tab(:, 1), tab(:, 2), t)
     else
       l = lj_law(p, 1.0_dp, r_lo, r_hi)

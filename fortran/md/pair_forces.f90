@@ -164,15 +164,16 @@ contains
   end function rsqrt3
 
   !> The dipole law by evaluation ev (exact when absent or eval_exact) at nk squared distances
-  !> r2s [D1^2]: the force factor s5 = r^-5 - shift4 r^-1 and r^-3 (unweighted: the callers
-  !> weight them). The evaluation is chosen here, once per chunk, outside the loops.
-  subroutine dipole_eval(nk, r2s, shift4, s5, s3, ev)
+  !> r2s [D1^2], times the callers' weights: c(m) = w_c(m) s5 with the force factor s5 = r^-5
+  !> - shift4 r^-1, r3(m) = w_3(m) r^-3 (the weights w on entry: masks, split weights, factors;
+  !> multiplied in the kernel's loop, which is one loop per evaluation, chosen outside them).
+  subroutine dipole_eval(nk, r2s, shift4, c, r3, ev)
     integer, intent(in) :: nk
     real(dp), intent(in) :: r2s(nk), shift4
-    real(dp), intent(out) :: s5(nk), s3(nk)
+    real(dp), intent(inout) :: c(nk), r3(nk)
     type(pair_table_t), intent(in), optional :: ev
     integer(i8) :: ks(nk), tn, k
-    real(dp) :: ds(nk), d
+    real(dp) :: ds(nk), d, s5, s3
     integer :: m, code
     code = eval_exact
     if (present(ev)) code = ev%eval
@@ -183,15 +184,18 @@ contains
       do m = 1, nk
         k = ks(m)
         d = ds(m)
-        s5(m) = ev%c(1, k) + d*(ev%c(2, k) + d*(ev%c(3, k) + d*ev%c(4, k)))
-        s3(m) = ev%c(5, k) + d*(ev%c(6, k) + d*(ev%c(7, k) + d*ev%c(8, k)))
+        c(m) = c(m)*(ev%c(1, k) + d*(ev%c(2, k) + d*(ev%c(3, k) + d*ev%c(4, k))))
+        r3(m) = r3(m)*(ev%c(5, k) + d*(ev%c(6, k) + d*(ev%c(7, k) + d*ev%c(8, k))))
       end do
     case (eval_single)
-      call dipole_kernel_sp(r2s, shift4, s5, s3)
+      do m = 1, nk; call dipole_kernel_sp(r2s(m), shift4, s5, s3); c(m) = c(m)*s5; r3(m) = r3(m)*s3
+      end do
     case (eval_rsqrt)
-      call dipole_kernel_rs(r2s, shift4, s5, s3)
+      do m = 1, nk; call dipole_kernel_rs(r2s(m), shift4, s5, s3); c(m) = c(m)*s5; r3(m) = r3(m)*s3
+      end do
     case default
-      call dipole_kernel(r2s, shift4, s5, s3)
+      do m = 1, nk; call dipole_kernel(r2s(m), shift4, s5, s3); c(m) = c(m)*s5; r3(m) = r3(m)*s3
+      end do
     end select
   end subroutine dipole_eval
 
@@ -488,6 +492,7 @@ contains
     end if
     allocate(u(eval_samples), v(eval_samples, 2), ex(eval_samples, 2), mag(eval_samples, 2))
     call eval_grid(code, lo2, hi2, requested, t, u)
+    v = 1
     call dipole_eval(eval_samples, u, shift4, v(:, 1), v(:, 2), t)
     call dipole_kernel(u, shift4, ex(:, 1), ex(:, 2))
     mag(:, 1) = u**(-2.5_dp) + shift4*u**(-0.5_dp)
@@ -745,7 +750,7 @@ contains
     logical :: direct
     type(pair_table_t), intent(in), optional :: tab   !< the dipole law's evaluation
     real(dp) :: xi, yi, ci, wi, fxi, fyi, s3i, keep, low
-    real(dp) :: dxs(chunk), dys(chunk), cs(chunk), r3s(chunk), r2s(chunk), ws(chunk), wc(chunk)
+    real(dp) :: dxs(chunk), dys(chunk), cs(chunk), r3s(chunk), r2s(chunk)
     low = r2low   ! local running minimum (see row_segment)
     do i = i_lo, i_hi
       xi = x(i); yi = y(i)
@@ -763,12 +768,10 @@ contains
           keep = 1
           if (check) keep = merge(1.0_dp, 0.0_dp, r2s(m) < rc2)
           if (sp%on) keep = near_weight(sp, r2s(m))
-          ws(m) = keep
-          wc(m) = keep*ci*mu(j)
+          cs(m) = keep*ci*mu(j)
+          r3s(m) = keep
         end do
-        call dipole_eval(nk, r2s, shift4, cs, r3s, tab)   ! the law
-        cs(1:nk) = wc(1:nk)*cs(1:nk)
-        r3s(1:nk) = ws(1:nk)*r3s(1:nk)
+        call dipole_eval(nk, r2s, shift4, cs, r3s, tab)   ! the law, times those weights
         direct = hi_direct >= n
         if (.not. direct) direct = maxval(nbr(k0:k0 + nk - 1)) <= hi_direct
         if (direct) then   ! the usual case: every j is ours
@@ -893,9 +896,11 @@ contains
     end subroutine lane_law
   end subroutine ranges_exact
 
-  !> dipole_ranges with the kernel in single precision.
+  !> dipole_ranges with the kernel in single precision, in 8 lanes (with 4, GCC vectorises the
+  !> mixed-precision loop 2 doubles wide; 8 fill 256-bit vectors of single).
   subroutine ranges_single(sp, side, i_lo, i_hi, j_min, j_max, j_pad, x, y, mu, wsin, &
        k_pair, r2_lo, r2_hi, shift4, with_r3, rstart, rlo, rhi, ax, ay, a3, rsum, r2low)
+    integer, parameter :: lanes = 8
     include 'dipole_ranges.inc'
   contains
     pure elemental subroutine lane_law(d2, s5, r3)
@@ -998,15 +1003,15 @@ contains
         pw(m, 2) = y(i) - y(j)
         r2s(m) = pw(m, 1)*pw(m, 1) + pw(m, 2)*pw(m, 2)
         low = min(low, r2s(m))
+        if (kernel == kernel_dipole) then   ! the weights (loop-invariant tests: unswitched)
+          keep = merge(1.0_dp, 0.0_dp, r2s(m) < rk2)
+          if (sp%on) keep = near_weight(sp, r2s(m))
+          pw(m, 3) = keep             ! times k mu_i mu_j in chunk_sums (no gathers of mu, wsin here)
+          pw(m, 4) = keep*keep3       ! 0 without the friction sums (s3 then gets + 0)
+        end if
       end do
       if (kernel == kernel_dipole) then
-        call dipole_eval(nk, r2s, shift4, pw(:, 3), pw(:, 4), tab)   ! the law, then the weights
-        do m = 1, nk
-          keep = merge(1.0_dp, 0.0_dp, r2s(m) < rk2)
-          if (sp%on) keep = near_weight(sp, r2s(m))   ! loop-invariant test (unswitched)
-          pw(m, 3) = keep*pw(m, 3)    ! times k mu_i mu_j in chunk_sums (no gathers of mu, wsin here)
-          pw(m, 4) = keep*keep3*pw(m, 4)   ! 0 without the friction sums (s3 then gets + 0)
-        end do
+        call dipole_eval(nk, r2s, shift4, pw(:, 3), pw(:, 4), tab)   ! the law times the weights
       else
         call lj_chunk(l, nk, r2s, pw(:, 3), tab)
       end if
