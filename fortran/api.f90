@@ -270,7 +270,9 @@ contains
     if (law == 1) then
       call dipole_eval_build(ev, a, r_lo**2, r_hi**2, requested, t, ok)
       tab = 1   ! the weights dipole_eval multiplies
-      call dipole_eval(n, u, a, tab(:, 1), tab(:, 2), t)
+      do i = 1, n, 256
+        call dipole_eval(min(256, n - i + 1), u(i:), a, tab(i:, 1), tab(i:, 2), t)
+      end do
     else
       l = lj_law(p, 1.0_dp, r_lo, r_hi)
       call lj_eval_build(ev, l, requested, t, ok)

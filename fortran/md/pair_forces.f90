@@ -167,20 +167,22 @@ contains
   !> r2s [D1^2], times the callers' weights: c(m) = w_c(m) s5 with the force factor s5 = r^-5
   !> - shift4 r^-1, r3(m) = w_3(m) r^-3 (the weights w on entry: masks, split weights, factors;
   !> multiplied in the kernel's loop, which is one loop per evaluation, chosen outside them).
+  !> nk <= pair_chunk (fixed-size work arrays: gfortran would allocate automatic ones on the
+  !> heap at every call).
   subroutine dipole_eval(nk, r2s, shift4, c, r3, ev)
     integer, intent(in) :: nk
     real(dp), intent(in) :: r2s(nk), shift4
     real(dp), intent(inout) :: c(nk), r3(nk)
     type(pair_table_t), intent(in), optional :: ev
-    integer(i8) :: ks(nk), tn, k
-    real(dp) :: ds(nk), d, s5, s3
+    integer(i8) :: ks(pair_chunk), tn, k
+    real(dp) :: ds(pair_chunk), d, s5, s3
     integer :: m, code
     code = eval_exact
     if (present(ev)) code = ev%eval
     select case (code)
     case (eval_table)   ! segments first, then the pieces: in one loop GCC 12 vectorises neither
       tn = ev%n
-      call table_seg(r2s, ev%lo2, ev%hi2, tn, ev%shift, ev%base, ks, ds)
+      call table_seg(r2s, ev%lo2, ev%hi2, tn, ev%shift, ev%base, ks(1:nk), ds(1:nk))
       do m = 1, nk
         k = ks(m)
         d = ds(m)
@@ -484,6 +486,7 @@ contains
     type(pair_table_t), intent(out) :: t
     logical, intent(out) :: ok
     real(dp), allocatable :: u(:), v(:, :), ex(:, :), mag(:, :)
+    integer :: m0
     ok = .true.
     if (code == eval_exact) return
     if (code == eval_table) then
@@ -493,7 +496,10 @@ contains
     allocate(u(eval_samples), v(eval_samples, 2), ex(eval_samples, 2), mag(eval_samples, 2))
     call eval_grid(code, lo2, hi2, requested, t, u)
     v = 1
-    call dipole_eval(eval_samples, u, shift4, v(:, 1), v(:, 2), t)
+    do m0 = 1, eval_samples, pair_chunk
+      call dipole_eval(min(pair_chunk, eval_samples - m0 + 1), u(m0:), shift4, v(m0:, 1), &
+           v(m0:, 2), t)
+    end do
     call dipole_kernel(u, shift4, ex(:, 1), ex(:, 2))
     mag(:, 1) = u**(-2.5_dp) + shift4*u**(-0.5_dp)
     mag(:, 2) = ex(:, 2)
