@@ -13,7 +13,7 @@ module api
   use signals, only: install_handlers, restore_handlers
   use protocol, only: piston_at
   use pair_forces, only: dipole_kernel, dipole_eval_build, dipole_eval, lj_eval_build, lj_chunk, &
-       lj_law, lj_law_t, lj_kernel, pair_table_t
+       lj_law, lj_law_t, lj_kernel, pair_table_t, split_t
   use neighbours, only: nlist_due
   use integrators, only: estimate_velocity, finish_velocity
   implicit none
@@ -271,7 +271,8 @@ contains
       call dipole_eval_build(ev, a, r_lo**2, r_hi**2, requested, t, ok)
       tab = 1   ! the weights dipole_eval multiplies
       do i = 1, n, 256
-        call dipole_eval(min(256, n - i + 1), u(i:), a, tab(i:, 1), tab(i:, 2), t)
+        call dipole_eval(min(256, n - i + 1), u(i:), a, split_t(), huge(1.0_dp), 1.0_dp, 1.0_dp, &
+             tab(i:, 1), tab(i:, 2), t)
       end do
     else
       l = lj_law(p, 1.0_dp, r_lo, r_hi)

@@ -164,42 +164,31 @@ contains
   end function rsqrt3
 
   !> The dipole law by evaluation ev (exact when absent or eval_exact) at nk squared distances
-  !> r2s [D1^2], times the callers' weights: c(m) = w_c(m) s5 with the force factor s5 = r^-5
-  !> - shift4 r^-1, r3(m) = w_3(m) r^-3 (the weights w on entry: masks, split weights, factors;
-  !> multiplied in the kernel's loop, which is one loop per evaluation, chosen outside them).
-  !> nk <= pair_chunk (fixed-size work arrays: gfortran would allocate automatic ones on the
-  !> heap at every call).
-  subroutine dipole_eval(nk, r2s, shift4, c, r3, ev)
+  !> r2s [D1^2], weighted: c(m) = S ci c(m) s5 with the force factor s5 = r^-5 - shift4 r^-1
+  !> and r3(m) = S w3 r^-3, S the mask at rk2 or the split's near side (ci, w3 and c(m) on
+  !> entry: the callers' factors); the loops of dipole_eval.inc, as the pair loops run them;
+  !> nk <= pair_chunk.
+  subroutine dipole_eval(nk, r2s, shift4, sp, rk2, ci, w3, c, r3, tab)
     integer, intent(in) :: nk
-    real(dp), intent(in) :: r2s(nk), shift4
+    real(dp), intent(in) :: r2s(nk), shift4, rk2, ci, w3
+    type(split_t), intent(in) :: sp
     real(dp), intent(inout) :: c(nk), r3(nk)
-    type(pair_table_t), intent(in), optional :: ev
-    integer(i8) :: ks(pair_chunk), tn, k
-    real(dp) :: ds(pair_chunk), d, s5, s3
+    type(pair_table_t), intent(in), optional :: tab
+    integer(i8) :: ks(pair_chunk), tn
+    real(dp) :: ds(pair_chunk), e5, e3, keep
     integer :: m, code
     code = eval_exact
-    if (present(ev)) code = ev%eval
-    select case (code)
-    case (eval_table)   ! segments first, then the pieces: in one loop GCC 12 vectorises neither
-      tn = ev%n
-      call table_seg(r2s, ev%lo2, ev%hi2, tn, ev%shift, ev%base, ks(1:nk), ds(1:nk))
-      do m = 1, nk
-        k = ks(m)
-        d = ds(m)
-        c(m) = c(m)*(ev%c(1, k) + d*(ev%c(2, k) + d*(ev%c(3, k) + d*ev%c(4, k))))
-        r3(m) = r3(m)*(ev%c(5, k) + d*(ev%c(6, k) + d*(ev%c(7, k) + d*ev%c(8, k))))
-      end do
-    case (eval_single)
-      do m = 1, nk; call dipole_kernel_sp(r2s(m), shift4, s5, s3); c(m) = c(m)*s5; r3(m) = r3(m)*s3
-      end do
-    case (eval_rsqrt)
-      do m = 1, nk; call dipole_kernel_rs(r2s(m), shift4, s5, s3); c(m) = c(m)*s5; r3(m) = r3(m)*s3
-      end do
-    case default
-      do m = 1, nk; call dipole_kernel(r2s(m), shift4, s5, s3); c(m) = c(m)*s5; r3(m) = r3(m)*s3
-      end do
-    end select
+    if (present(tab)) code = tab%eval
+    include 'dipole_eval.inc'
   end subroutine dipole_eval
+
+  !> The dipole table's two pieces (row tc of c(8, n)) at offset d: force factor s5 and r^-3.
+  pure subroutine table_piece(tc, d, s5, s3)
+    real(dp), intent(in) :: tc(8), d
+    real(dp), intent(out) :: s5, s3
+    s5 = tc(1) + d*(tc(2) + d*(tc(3) + d*tc(4)))
+    s3 = tc(5) + d*(tc(6) + d*(tc(7) + d*tc(8)))
+  end subroutine table_piece
 
   !> The law with exponent p, depth u0 [m g a], lower cut-off rm [a] (rm > 0) and
   !> cut-off rc [a] (plain truncation, as eq. 3: force and energy jump at R).
@@ -497,8 +486,8 @@ contains
     call eval_grid(code, lo2, hi2, requested, t, u)
     v = 1
     do m0 = 1, eval_samples, pair_chunk
-      call dipole_eval(min(pair_chunk, eval_samples - m0 + 1), u(m0:), shift4, v(m0:, 1), &
-           v(m0:, 2), t)
+      call dipole_eval(min(pair_chunk, eval_samples - m0 + 1), u(m0:), shift4, split_t(), &
+           huge(1.0_dp), 1.0_dp, 1.0_dp, v(m0:, 1), v(m0:, 2), t)
     end do
     call dipole_kernel(u, shift4, ex(:, 1), ex(:, 2))
     mag(:, 1) = u**(-2.5_dp) + shift4*u**(-0.5_dp)
@@ -755,8 +744,14 @@ contains
     integer :: i, j, m, k0, nk
     logical :: direct
     type(pair_table_t), intent(in), optional :: tab   !< the dipole law's evaluation
-    real(dp) :: xi, yi, ci, wi, fxi, fyi, s3i, keep, low
-    real(dp) :: dxs(chunk), dys(chunk), cs(chunk), r3s(chunk), r2s(chunk)
+    real(dp) :: xi, yi, ci, wi, fxi, fyi, s3i, low, rk2, e5, e3, keep
+    real(dp) :: dxs(chunk), dys(chunk), cs(chunk), r3s(chunk), r2s(chunk), ds(chunk)
+    integer(i8) :: ks(chunk), tn
+    integer :: code
+    code = eval_exact
+    if (present(tab)) code = tab%eval
+    rk2 = huge(1.0_dp)   ! pairs at r >= r_c skipped only with check
+    if (check) rk2 = rc2
     low = r2low   ! local running minimum (see row_segment)
     do i = i_lo, i_hi
       xi = x(i); yi = y(i)
@@ -771,13 +766,11 @@ contains
           dys(m) = yi - y(j)
           r2s(m) = dxs(m)*dxs(m) + dys(m)*dys(m)
           low = min(low, r2s(m))
-          keep = 1
-          if (check) keep = merge(1.0_dp, 0.0_dp, r2s(m) < rc2)
-          if (sp%on) keep = near_weight(sp, r2s(m))
-          cs(m) = keep*ci*mu(j)
-          r3s(m) = keep
+          cs(m) = mu(j)
         end do
-        call dipole_eval(nk, r2s, shift4, cs, r3s, tab)   ! the law, times those weights
+        associate (c => cs, r3 => r3s, w3 => 1.0_dp)   ! the law
+          include 'dipole_eval.inc'
+        end associate
         direct = hi_direct >= n
         if (.not. direct) direct = maxval(nbr(k0:k0 + nk - 1)) <= hi_direct
         if (direct) then   ! the usual case: every j is ours
@@ -990,10 +983,14 @@ contains
     real(dp), intent(inout) :: fx(n), fy(n), s3(n), sx(*), sy(*), ss(*)
     real(dp), intent(inout) :: r2low
     integer, parameter :: chunk = pair_chunk
-    integer :: i, j, m, k, k0, nk, k_hi
-    real(dp) :: low, rk2, keep, keep3
+    integer :: i, j, m, k, k0, nk, k_hi, code
+    real(dp) :: low, rk2, keep3, e5, e3, keep
     real(dp) :: r2s(chunk), pw(chunk, 4)   ! per pair: x_i - x_j, y_i - y_j, force factor, r^-3
     type(pair_table_t), intent(in), optional :: tab   !< the law's evaluation
+    integer(i8) :: ks(pair_chunk), tn
+    real(dp) :: ds(pair_chunk)
+    code = eval_exact
+    if (present(tab)) code = tab%eval
     low = r2low
     keep3 = merge(1.0_dp, 0.0_dp, with_r3)
     rk2 = huge(1.0_dp)
@@ -1009,15 +1006,14 @@ contains
         pw(m, 2) = y(i) - y(j)
         r2s(m) = pw(m, 1)*pw(m, 1) + pw(m, 2)*pw(m, 2)
         low = min(low, r2s(m))
-        if (kernel == kernel_dipole) then   ! the weights (loop-invariant tests: unswitched)
-          keep = merge(1.0_dp, 0.0_dp, r2s(m) < rk2)
-          if (sp%on) keep = near_weight(sp, r2s(m))
-          pw(m, 3) = keep             ! times k mu_i mu_j in chunk_sums (no gathers of mu, wsin here)
-          pw(m, 4) = keep*keep3       ! 0 without the friction sums (s3 then gets + 0)
-        end if
+        pw(m, 3) = 1
       end do
       if (kernel == kernel_dipole) then
-        call dipole_eval(nk, r2s, shift4, pw(:, 3), pw(:, 4), tab)   ! the law times the weights
+        ! force factor times k mu_i mu_j in chunk_sums (no gathers of mu, wsin here); r^-3
+        ! times 0 without the friction sums (s3 then gets + 0)
+        associate (c => pw(:, 3), r3 => pw(:, 4), ci => 1.0_dp, w3 => keep3)
+          include 'dipole_eval.inc'
+        end associate
       else
         call lj_chunk(l, nk, r2s, pw(:, 3), tab)
       end if
