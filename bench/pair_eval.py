@@ -184,11 +184,12 @@ def main() -> int:
     out.mkdir(exist_ok=True)
     load = os.getloadavg()
     pd.set_option("display.width", 200)
-    k = kernel_table(args.rounds, tuple(args.evals), args.engine_a)
-    k.to_csv(out / "pair_eval_kernel.csv", index=False)
-    print(f"load average at start {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}; "
-          f"at end {os.getloadavg()[0]:.2f}")
-    print(k.to_string(index=False))
+    if args.rounds > 0:   # (--rounds 0: the F_max runs only)
+        k = kernel_table(args.rounds, tuple(args.evals), args.engine_a)
+        k.to_csv(out / "pair_eval_kernel.csv", index=False)
+        print(f"load average at start {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}; "
+              f"at end {os.getloadavg()[0]:.2f}")
+        print(k.to_string(index=False))
     if args.seeds > 0:
         f = fmax_table(list(range(1, args.seeds + 1)), tuple(args.evals))
         f.to_csv(out / "pair_eval_fmax.csv", index=False)
