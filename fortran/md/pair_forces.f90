@@ -297,8 +297,13 @@ contains
     case default
       call lj6_kernel(c4p, rm2, rc2, r2s, cs)
     end select
-    ! (no core count in the loops above: with it, the table's does not vectorise)
-    if (minval(r2s(1:nk)) > rm2) return
+    ! (no core count in the loops above: with it, the table's does not vectorise; and a loop,
+    ! not minval, which GCC 12 does not vectorise: 5 % of the lj_box step)
+    d = huge(1.0_dp)
+    do m = 1, nk
+      d = min(d, r2s(m))
+    end do
+    if (d > rm2) return
     do m = 1, nk
       if (r2s(m) <= rm2) cs(m) = l%fcore*sqrt(1.0_dp/r2s(m))
     end do
@@ -873,70 +878,39 @@ contains
            k_pair, r2_lo, r2_hi, shift4, with_r3, rstart, rlo, rhi, ax, ay, a3, rsum, r2low, tab)
     case (eval_single)
       call ranges_single(sp, side, i_lo, i_hi, j_min, j_max, j_pad, x, y, mu, wsin, &
-           k_pair, r2_lo, r2_hi, shift4, with_r3, rstart, rlo, rhi, ax, ay, a3, rsum, r2low)
+           k_pair, r2_lo, r2_hi, shift4, with_r3, rstart, rlo, rhi, ax, ay, a3, rsum, r2low, tab)
     case (eval_rsqrt)
       call ranges_rsqrt(sp, side, i_lo, i_hi, j_min, j_max, j_pad, x, y, mu, wsin, &
-           k_pair, r2_lo, r2_hi, shift4, with_r3, rstart, rlo, rhi, ax, ay, a3, rsum, r2low)
+           k_pair, r2_lo, r2_hi, shift4, with_r3, rstart, rlo, rhi, ax, ay, a3, rsum, r2low, tab)
     case default
       call ranges_exact(sp, side, i_lo, i_hi, j_min, j_max, j_pad, x, y, mu, wsin, &
-           k_pair, r2_lo, r2_hi, shift4, with_r3, rstart, rlo, rhi, ax, ay, a3, rsum, r2low)
+           k_pair, r2_lo, r2_hi, shift4, with_r3, rstart, rlo, rhi, ax, ay, a3, rsum, r2low, tab)
     end select
   end subroutine dipole_ranges
 
-  !> dipole_ranges with the exact kernel.
   subroutine ranges_exact(sp, side, i_lo, i_hi, j_min, j_max, j_pad, x, y, mu, wsin, &
-       k_pair, r2_lo, r2_hi, shift4, with_r3, rstart, rlo, rhi, ax, ay, a3, rsum, r2low)
+       k_pair, r2_lo, r2_hi, shift4, with_r3, rstart, rlo, rhi, ax, ay, a3, rsum, r2low, tab)   ! dipole_ranges, exact
+    integer, parameter :: law = eval_exact
     include 'dipole_ranges.inc'
-  contains
-    pure elemental subroutine lane_law(d2, s5, r3)
-      real(dp), intent(in) :: d2
-      real(dp), intent(out) :: s5, r3
-      call dipole_kernel(d2, shift4, s5, r3)
-    end subroutine lane_law
   end subroutine ranges_exact
 
-  !> dipole_ranges with the kernel in single precision, in 8 lanes (with 4, GCC vectorises the
-  !> mixed-precision loop 2 doubles wide; 8 fill 256-bit vectors of single).
-  subroutine ranges_single(sp, side, i_lo, i_hi, j_min, j_max, j_pad, x, y, mu, wsin, &
-       k_pair, r2_lo, r2_hi, shift4, with_r3, rstart, rlo, rhi, ax, ay, a3, rsum, r2low)
-    integer, parameter :: lanes = 8
+  subroutine ranges_table(sp, side, i_lo, i_hi, j_min, j_max, j_pad, x, y, mu, wsin, &
+       k_pair, r2_lo, r2_hi, shift4, with_r3, rstart, rlo, rhi, ax, ay, a3, rsum, r2low, tab)   ! dipole_ranges, table
+    integer, parameter :: law = eval_table
     include 'dipole_ranges.inc'
-  contains
-    pure elemental subroutine lane_law(d2, s5, r3)
-      real(dp), intent(in) :: d2
-      real(dp), intent(out) :: s5, r3
-      call dipole_kernel_sp(d2, shift4, s5, r3)
-    end subroutine lane_law
+  end subroutine ranges_table
+
+  subroutine ranges_single(sp, side, i_lo, i_hi, j_min, j_max, j_pad, x, y, mu, wsin, &
+       k_pair, r2_lo, r2_hi, shift4, with_r3, rstart, rlo, rhi, ax, ay, a3, rsum, r2low, tab)   ! dipole_ranges, single
+    integer, parameter :: law = eval_single
+    include 'dipole_ranges.inc'
   end subroutine ranges_single
 
-  !> dipole_ranges with r^-1 by Newton steps (rsqrt3).
   subroutine ranges_rsqrt(sp, side, i_lo, i_hi, j_min, j_max, j_pad, x, y, mu, wsin, &
-       k_pair, r2_lo, r2_hi, shift4, with_r3, rstart, rlo, rhi, ax, ay, a3, rsum, r2low)
+       k_pair, r2_lo, r2_hi, shift4, with_r3, rstart, rlo, rhi, ax, ay, a3, rsum, r2low, tab)   ! dipole_ranges, rsqrt
+    integer, parameter :: law = eval_rsqrt
     include 'dipole_ranges.inc'
-  contains
-    pure elemental subroutine lane_law(d2, s5, r3)
-      real(dp), intent(in) :: d2
-      real(dp), intent(out) :: s5, r3
-      call dipole_kernel_rs(d2, shift4, s5, r3)
-    end subroutine lane_law
   end subroutine ranges_rsqrt
-
-  !> dipole_ranges with the table (c(8, n), module pair_table).
-  subroutine ranges_table(sp, side, i_lo, i_hi, j_min, j_max, j_pad, x, y, mu, wsin, &
-       k_pair, r2_lo, r2_hi, shift4, with_r3, rstart, rlo, rhi, ax, ay, a3, rsum, r2low, tab)
-    type(pair_table_t), intent(in) :: tab
-    include 'dipole_ranges.inc'
-  contains
-    pure subroutine lane_law(d2, s5, r3)
-      real(dp), intent(in) :: d2
-      real(dp), intent(out) :: s5, r3
-      integer(i8) :: k
-      real(dp) :: d
-      call table_seg(d2, tab%lo2, tab%hi2, int(tab%n, i8), tab%shift, tab%base, k, d)
-      s5 = tab%c(1, k) + d*(tab%c(2, k) + d*(tab%c(3, k) + d*tab%c(4, k)))
-      r3 = tab%c(5, k) + d*(tab%c(6, k) + d*(tab%c(7, k) + d*tab%c(8, k)))
-    end subroutine lane_law
-  end subroutine ranges_table
 
   !> Add the row sums of dipole_ranges to the rows' own forces.
   subroutine add_row_sums(i_lo, i_hi, with_r3, rsum, fx, fy, s3)
