@@ -69,15 +69,19 @@ def _run(path: Path, out: Path) -> subprocess.CompletedProcess[str]:
                           capture_output=True, text=True, timeout=300)
 
 
-def test_unreachable_request_refused_naming_key_and_range(make_scene: Any,
-                                                          tmp_path: Path) -> None:
-    path = make_scene("bench_compression", {"integration.pair_eval": "table",
-                                            "integration.pair_table_error": 1e-15})
+@pytest.mark.parametrize("ev, req", [("table", 1e-15), ("single", 1e-9)])
+def test_unreachable_request_refused_naming_key_and_range(make_scene: Any, tmp_path: Path,
+                                                          ev: str, req: float) -> None:
+    """Below what the evaluation reaches (the finest table; single precision): exit 2, the
+    key, the range and the reachable error named, nothing written."""
+    path = make_scene("bench_compression", {"integration.pair_eval": ev,
+                                            "integration.pair_table_error": req})
     r = _run(path, tmp_path / "o")
     assert r.returncode == 2
     msg = r.stderr + r.stdout
     assert "&integration pair_table_error" in msg and "allowed [" in msg
     assert "not reached over r in [" in msg
+    assert ("finest table" if ev == "table" else "pair_eval = 'single'") in msg
     assert not (tmp_path / "o" / "piston.dat").exists()
 
 
@@ -165,17 +169,6 @@ def test_cheap_lj_within_bound_on_dense_grid(api: Any, ev: str) -> None:
 def test_single_below_its_precision_refused_in_probe(api: Any) -> None:
     *_, max_err, _seg, code = probe(api, 1, 0, 0.0, 0.5, 97.0, 1e-9, np.array([1.0]), "single")
     assert code == 2 and 1e-9 < max_err <= 1e-6
-
-
-def test_single_below_its_precision_refused_naming_key(make_scene: Any, tmp_path: Path) -> None:
-    path = make_scene("bench_compression", {"integration.pair_eval": "single",
-                                            "integration.pair_table_error": 1e-9})
-    r = _run(path, tmp_path / "o")
-    assert r.returncode == 2
-    msg = r.stderr + r.stdout
-    assert "&integration pair_table_error" in msg and "pair_eval = 'single'" in msg
-    assert "allowed [" in msg and "not reached over r in [" in msg
-    assert not (tmp_path / "o" / "piston.dat").exists()
 
 
 @pytest.mark.parametrize("ev", ["single", "rsqrt"])

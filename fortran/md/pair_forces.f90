@@ -888,26 +888,27 @@ contains
     end select
   end subroutine dipole_ranges
 
+  ! dipole_ranges by evaluation: the loop nest of dipole_ranges.inc compiled with the constant law
   subroutine ranges_exact(sp, side, i_lo, i_hi, j_min, j_max, j_pad, x, y, mu, wsin, &
-       k_pair, r2_lo, r2_hi, shift4, with_r3, rstart, rlo, rhi, ax, ay, a3, rsum, r2low, tab)   ! dipole_ranges, exact
+       k_pair, r2_lo, r2_hi, shift4, with_r3, rstart, rlo, rhi, ax, ay, a3, rsum, r2low, tab)
     integer, parameter :: law = eval_exact
     include 'dipole_ranges.inc'
   end subroutine ranges_exact
 
   subroutine ranges_table(sp, side, i_lo, i_hi, j_min, j_max, j_pad, x, y, mu, wsin, &
-       k_pair, r2_lo, r2_hi, shift4, with_r3, rstart, rlo, rhi, ax, ay, a3, rsum, r2low, tab)   ! dipole_ranges, table
+       k_pair, r2_lo, r2_hi, shift4, with_r3, rstart, rlo, rhi, ax, ay, a3, rsum, r2low, tab)
     integer, parameter :: law = eval_table
     include 'dipole_ranges.inc'
   end subroutine ranges_table
 
   subroutine ranges_single(sp, side, i_lo, i_hi, j_min, j_max, j_pad, x, y, mu, wsin, &
-       k_pair, r2_lo, r2_hi, shift4, with_r3, rstart, rlo, rhi, ax, ay, a3, rsum, r2low, tab)   ! dipole_ranges, single
+       k_pair, r2_lo, r2_hi, shift4, with_r3, rstart, rlo, rhi, ax, ay, a3, rsum, r2low, tab)
     integer, parameter :: law = eval_single
     include 'dipole_ranges.inc'
   end subroutine ranges_single
 
   subroutine ranges_rsqrt(sp, side, i_lo, i_hi, j_min, j_max, j_pad, x, y, mu, wsin, &
-       k_pair, r2_lo, r2_hi, shift4, with_r3, rstart, rlo, rhi, ax, ay, a3, rsum, r2low, tab)   ! dipole_ranges, rsqrt
+       k_pair, r2_lo, r2_hi, shift4, with_r3, rstart, rlo, rhi, ax, ay, a3, rsum, r2low, tab)
     integer, parameter :: law = eval_rsqrt
     include 'dipole_ranges.inc'
   end subroutine ranges_rsqrt
