@@ -31,7 +31,7 @@ module pair_forces
   public :: dipole_kernel, pair_forces_all, pair_forces_list, pair_forces_far, pair_energy_all
   public :: lj_law_t, lj_law, lj_kernel, lj_energy
   public :: split_t, split_of
-  public :: pair_table_t, dipole_table, lj_table, table_values, max_bits
+  public :: pair_table_t, dipole_table, lj_table, max_bits
   public :: dipole_eval_build, lj_eval_build, dipole_eval, lj_chunk, rsqrt3
 
   integer, parameter :: samples = 16   !< error samples inside each table segment (and its ends)
