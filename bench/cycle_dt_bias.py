@@ -15,6 +15,8 @@ every 0.2 T at every dt (the interval in time is what its error depends on: sect
         --grid shipped --reuse bench/results/cycle_dt_bias_rows.csv   # + the shipped setting
     OMP_NUM_THREADS=1 .venv/bin/python bench/cycle_dt_bias.py --seeds 112 --workers 2 \
         --grid dt4 --reuse bench/results/cycle_dt_bias_rows.csv       # + dt 4e-3 (section 27)
+    OMP_NUM_THREADS=1 .venv/bin/python bench/cycle_dt_bias.py --seeds 112 --workers 1 \
+        --grid dt4_single --reuse bench/results/cycle_dt_bias_rows.csv  # + single (section 35)
 
 Unlike ``bench/dt_bias.py`` (compression at 1 D1/T, where the particles always slide) this
 regime holds most particles by static friction, and that is where the lagged friction velocity
@@ -53,12 +55,20 @@ def setting(friction: str, dt: float, tail: str = "frozen",
     return label, over
 
 
+def with_pair_eval(labelled: tuple[str, dict[str, Any]], ev: str) -> tuple[str, dict[str, Any]]:
+    """A setting with &integration pair_eval = ev (label suffixed _ev)."""
+    label, over = labelled
+    return f"{label}_{ev}", {**over, "integration.pair_eval": ev}
+
+
 GRIDS = {"friction": [setting("implicit", 2e-3), setting("implicit", 8e-3),
                       setting("lagged", 8e-3), setting("lagged", 2e-3)],
          "shipped": [setting("implicit", 8e-3, "linear", 0.4)],
          "linear0.8": [setting("implicit", 8e-3, "linear", 0.8)],
          "certify": [setting("implicit", 2e-3), setting("implicit", 8e-3, "linear", 0.8)],
-         "dt4": [setting("implicit", 4e-3, "linear", 0.8)]}
+         "dt4": [setting("implicit", 4e-3, "linear", 0.8)],
+         # the shipped setting with single-precision pair arithmetic (issue 27, section 35)
+         "dt4_single": [with_pair_eval(setting("implicit", 4e-3, "linear", 0.8), "single")]}
 
 
 def compression_only(scene: Path) -> Scene:

@@ -296,6 +296,13 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
                         "included in a second column; steps per point from --grid-work")
     p.add_argument("--grid-work", type=float, default=2.0e7,
                    help="particle-steps per grid point (steps = work/N, 50..1000)")
+    p.add_argument("--pair-eval", nargs="+", default=["exact"],
+                   choices=("exact", "table", "single", "rsqrt"),
+                   help="--grid: partsim's pair evaluations timed at every point (exact "
+                        "first: its columns keep their names; the others get _<eval>)")
+    p.add_argument("--grid-n", type=int, nargs="+", default=None, help="--grid: the N")
+    p.add_argument("--grid-rc", type=float, nargs="+", default=None, help="--grid: the r_c")
+    p.add_argument("--grid-csv", default="lammps_grid.csv", help="--grid: bench/results/ name")
     p.add_argument("--out", type=Path, default=common.OUT / "lammps_compare",
                    help="work directory")
     return p.parse_args(argv)
@@ -308,9 +315,10 @@ GRID_RC = (3.0, 4.0, 7.0, 10.0)
 def grid_point(lammps_cls: Any, a: argparse.Namespace, n: int, r_cut: float) -> dict[str, Any]:
     """One (N, r_c) of the grid: per-step times (partsim set-up subtracted, LAMMPS Loop time)
     and whole-run times with the set-up included (partsim: the wall time of the run without
-    frames; LAMMPS: creating the instance, reading the data, the runs' set-up and the loop)."""
-    import time
-
+    frames; LAMMPS: creating the instance, reading the data, the runs' set-up and the loop).
+    Every pair evaluation of --pair-eval is timed (its ratio and the largest relative force
+    error partsim measured at load, over [min_distance, r_c + skin]) next to LAMMPS' table's
+    largest relative force error (pair_write over [--table-lo, r_c))."""
     steps = int(min(1000, max(50, a.grid_work / n)))
     out = a.out / f"grid_{n}_{r_cut:g}"
     out.mkdir(parents=True, exist_ok=True)
@@ -326,10 +334,17 @@ def grid_point(lammps_cls: Any, a: argparse.Namespace, n: int, r_cut: float) -> 
         r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
         return t.wall_s, (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)
 
-    one = min((cpu_run(common.with_steps(scene, 1, a.dt), f"p1_{k}") for k in range(a.repeat)),
-              key=lambda t: t[1])
-    ours = min((cpu_run(scene, f"pS_{k}") for k in range(a.repeat)), key=lambda t: t[1])
-    pairs = common.timing_of(json.loads((out / "pS_0" / "run.json").read_text())).pairs_per_step
+    evals: dict[str, tuple[tuple[float, float], tuple[float, float], float]] = {}
+    for ev in a.pair_eval:
+        sc = scene.with_overrides({"integration.pair_eval": ev})
+        one = min((cpu_run(common.with_steps(sc, 1, a.dt), f"p1_{ev}_{k}")
+                   for k in range(a.repeat)), key=lambda t: t[1])
+        ours = min((cpu_run(sc, f"pS_{ev}_{k}") for k in range(a.repeat)), key=lambda t: t[1])
+        err = json.loads((out / f"pS_{ev}_0" / "run.json").read_text())["pair_max_rel_error"]
+        evals[ev] = (one, ours, float(err))
+    one, ours, _ = evals[a.pair_eval[0]]
+    pairs = common.timing_of(json.loads((out / f"pS_{a.pair_eval[0]}_0" / "run.json")
+                                        .read_text())).pairs_per_step
     side = box_side(n, a.spacing)
     consts = common.model_constants(scene)
     data, table, wall_table = out / "initial.data", out / "dipole.table", out / "wall.table"
@@ -345,9 +360,22 @@ def grid_point(lammps_cls: Any, a: argparse.Namespace, n: int, r_cut: float) -> 
         if best is None or res.run_cpu_s < best.run_cpu_s:
             best = res
     assert best is not None
+    # LAMMPS' own table error (pair_write, a 1-step instance)
+    check = run_lammps(lammps_cls, out, cmds, 1, a.table_lo, r_cut, with_checks=True,
+                       tag="table.check")
+    assert check.table_rows is not None
+    lmp_err = force_error(check.table_rows, consts["k_pair"], a.table_lo)
     ours_step = (ours[1] - one[1]) / (steps - 1)      # CPU, set-up subtracted
     lmp_step = best.run_cpu_s / steps                 # CPU of `run S` (one list build of set-up)
-    return {"N": n, "r_cut": r_cut, "steps": steps, "pairs_per_step": pairs,
+    extra: dict[str, Any] = {"lammps_table_max_rel_error": lmp_err,
+                             f"partsim_max_rel_error_{a.pair_eval[0]}": evals[a.pair_eval[0]][2]}
+    for ev in a.pair_eval[1:]:
+        e_one, e_ours, e_err = evals[ev]
+        e_step = (e_ours[1] - e_one[1]) / (steps - 1)
+        extra.update({f"partsim_cpu_s_per_step_{ev}": e_step,
+                      f"ratio_per_step_{ev}": lmp_step / e_step,
+                      f"partsim_max_rel_error_{ev}": e_err})
+    return {"N": n, "r_cut": r_cut, "steps": steps, "pairs_per_step": pairs, **extra,
             "partsim_cpu_s_per_step": ours_step, "lammps_cpu_s_per_step": lmp_step,
             "ratio_per_step": lmp_step / ours_step,
             "partsim_total_cpu_s": ours[1], "lammps_total_cpu_s": best.total_cpu_s,
@@ -370,9 +398,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     if a.grid:
         import pandas as pd
 
-        rows = [grid_point(lammps_cls, a, n, rc) for n in GRID_N for rc in GRID_RC]
+        rows = [grid_point(lammps_cls, a, n, rc) for n in (a.grid_n or GRID_N)
+                for rc in (a.grid_rc or GRID_RC)]
         print(f"machine: {load0}; after: {common.machine_line()}")
-        common.save_table(pd.DataFrame(rows), "lammps_grid.csv")
+        common.save_table(pd.DataFrame(rows), a.grid_csv)
         return 0
 
     scene = bench_scene(a.n, a.spacing, a.r_cut, a.skin, a.dt, a.steps, a.steps, a.seed)

@@ -20,7 +20,9 @@ child-process CPU seconds, LAMMPS' process time around its run command): LAMMPS 
 (its set-up excluded); partsim's (wall_S - wall_1)/(S - 1) from two
 runs (set-up subtracted) and wall_S/S (set-up included; frames written in binary, the step-0
 checkpoint and two energy rows are part of it). Check: positions after S steps.
-Output: bench/results/lj_lammps.csv.
+--pair-eval times partsim with each pair evaluation (exact, table, single, rsqrt) against the
+same LAMMPS runs (a row each, with the error partsim measured at load).
+Output: bench/results/lj_lammps.csv (--csv).
 """
 from __future__ import annotations
 
@@ -44,7 +46,8 @@ from lammps_compare import by_id, data_file_text, parse_log  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def scene(n: int, phi: float, steps: int, dt: float, skin: float, seed: int) -> tuple[Any, float]:
+def scene(n: int, phi: float, steps: int, dt: float, skin: float, seed: int,
+          pair_eval: str = "exact") -> tuple[Any, float]:
     from pyorch.scene import Scene
 
     side = math.sqrt(n * math.pi / phi)
@@ -57,11 +60,11 @@ def scene(n: int, phi: float, steps: int, dt: float, skin: float, seed: int) -> 
         "walls.contact": "surface", "integration.method": "velocity_verlet",
         "integration.dt": dt, "integration.steps": steps, "output.frame_every": steps,
         "output.frames_format": "binary", "output.energy_every": steps,
-        "output.checkpoint_every": 0})
+        "output.checkpoint_every": 0, "steric.pair_eval": pair_eval})
     return sc, side
 
 
-def partsim(n: int, a: argparse.Namespace, out: Path) -> dict[str, Any]:
+def partsim(n: int, a: argparse.Namespace, out: Path, ev: str = "exact") -> dict[str, Any]:
     from pyorch import io
     from pyorch.run import run
     from pyorch.trajectory import FrameSpec, Trajectory
@@ -69,8 +72,8 @@ def partsim(n: int, a: argparse.Namespace, out: Path) -> dict[str, Any]:
     res: dict[int, float] = {}
     cpu: dict[int, float] = {}
     for steps in (1, a.steps):
-        sc, side = scene(n, a.phi, steps, a.dt, a.skin, a.seed)
-        d = out / f"partsim_n{n}_s{steps}"
+        sc, side = scene(n, a.phi, steps, a.dt, a.skin, a.seed, ev)
+        d = out / f"partsim_n{n}_s{steps}_{ev}"
         best = best_cpu = math.inf
         for _ in range(a.repeat):
             c0 = children_cpu()
@@ -134,6 +137,9 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--repeat", type=int, default=2, help="timed runs per engine (fastest)")
     p.add_argument("--out", type=Path, default=common.OUT / "lj_lammps")
+    p.add_argument("--pair-eval", nargs="+", default=["exact"],
+                   choices=("exact", "table", "single", "rsqrt"))
+    p.add_argument("--csv", default="lj_lammps.csv", help="bench/results/ name")
     return p.parse_args(argv)
 
 
@@ -149,28 +155,32 @@ def main(argv: Sequence[str] | None = None) -> int:
     rows = []
     print(common.machine_line())
     for n in a.n:
-        ps = partsim(n, a, a.out)
-        lm = min((lammps(lmp_cls, ps["frame0"], ps["side"], a, a.out, f"n{n}.{k}")
-                  for k in range(a.repeat)), key=lambda r: r["log"]["loop_s"])
-        s = a.steps
-        ps_sub = (ps["wall_S"] - ps["wall_1"]) / (s - 1)
-        lm_step = lm["log"]["loop_s"] / s
-        rows.append({
-            "N": n, "L_a": ps["side"], "steps": s,
-            "partsim_s_per_step": ps_sub, "partsim_incl_setup_s_per_step": ps["wall_S"] / s,
-            "lammps_s_per_step": lm_step,
-            "partsim_particle_steps_per_s": n / ps_sub,
-            "lammps_particle_steps_per_s": n / lm_step,
-            "speedup": lm_step / ps_sub, "speedup_incl_setup": lm_step / (ps["wall_S"] / s),
-            "speedup_cpu": lm["cpu"] / (ps["cpu_S"] - ps["cpu_1"]) * (s - 1) / s,
-            "speedup_cpu_incl_setup": lm["cpu"] / ps["cpu_S"],
-            "max_dx_after_S": float(np.abs(ps["xS"] - lm["xS"]).max()),
-            "r_min_a": ps["r_min"], "lammps_builds": lm["log"]["builds"],
-            "partsim_builds": ps["meta"]["list_builds"],
-        })
-        print(rows[-1], flush=True)
+        lm: dict[str, Any] | None = None
+        for ev in a.pair_eval:
+            ps = partsim(n, a, a.out, ev)
+            if lm is None:
+                lm = min((lammps(lmp_cls, ps["frame0"], ps["side"], a, a.out, f"n{n}.{k}")
+                          for k in range(a.repeat)), key=lambda r: r["log"]["loop_s"])
+            s = a.steps
+            ps_sub = (ps["wall_S"] - ps["wall_1"]) / (s - 1)
+            lm_step = lm["log"]["loop_s"] / s
+            rows.append({
+                "N": n, "pair_eval": ev, "pair_max_rel_error": ps["meta"]["pair_max_rel_error"],
+                "L_a": ps["side"], "steps": s,
+                "partsim_s_per_step": ps_sub, "partsim_incl_setup_s_per_step": ps["wall_S"] / s,
+                "lammps_s_per_step": lm_step,
+                "partsim_particle_steps_per_s": n / ps_sub,
+                "lammps_particle_steps_per_s": n / lm_step,
+                "speedup": lm_step / ps_sub, "speedup_incl_setup": lm_step / (ps["wall_S"] / s),
+                "speedup_cpu": lm["cpu"] / (ps["cpu_S"] - ps["cpu_1"]) * (s - 1) / s,
+                "speedup_cpu_incl_setup": lm["cpu"] / ps["cpu_S"],
+                "max_dx_after_S": float(np.abs(ps["xS"] - lm["xS"]).max()),
+                "r_min_a": ps["r_min"], "lammps_builds": lm["log"]["builds"],
+                "partsim_builds": ps["meta"]["list_builds"],
+            })
+            print(rows[-1], flush=True)
     df = pd.DataFrame(rows)
-    path = common.save_table(df, "lj_lammps.csv")
+    path = common.save_table(df, a.csv)
     with pd.option_context("display.width", 200, "display.float_format", "{:.4g}".format):
         print(df.to_string(index=False))
     print(f"wrote {path}")

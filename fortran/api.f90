@@ -12,8 +12,8 @@ module api
   use runner, only: sim_execute, sim_resume, sim_check, sim_resolve, sim_describe, write_text
   use signals, only: install_handlers, restore_handlers
   use protocol, only: piston_at
-  use pair_forces, only: dipole_kernel, dipole_table, lj_table, lj_law, lj_law_t, lj_kernel, &
-       pair_table_t, table_values
+  use pair_forces, only: dipole_kernel, dipole_eval_build, dipole_eval, lj_eval_build, lj_chunk, &
+       lj_law, lj_law_t, lj_kernel, pair_table_t, split_t
   use neighbours, only: nlist_due
   use integrators, only: estimate_velocity, finish_velocity
   implicit none
@@ -22,7 +22,7 @@ module api
        set_state, compute_forces, &
        advance_steps, piston_state, model_groups, energies, kernel, precision_probe, &
        set_threads, list_audit, protocol_times, set_piston, bench_pairs, write_guard_probe, &
-       pair_table_probe
+       pair_eval_probe
 
 contains
 
@@ -246,15 +246,17 @@ contains
     call dipole_kernel(dx*dx + dy*dy, 0.0_dp, s5, s3)
   end subroutine kernel
 
-  !> A pair table (&integration / &steric pair_eval = 'table') built as a run builds it, and
-  !> evaluated at the n distances r: law 1 = dipole over [r_lo, r_hi] with shift a (r_c^-4 or
-  !> 0): tab(:, 1) the force factor r^-5 - a r^-1, tab(:, 2) r^-3, ex the exact kernel's, mag
-  !> the scales of the relative error (r^-5 + a r^-1, r^-3); law 2 = Lennard-Jones with
-  !> exponent p (u0 1, r_m = r_lo, R = r_hi) and only column 1 (mag: its terms' magnitudes).
-  !> code 0, or 2 when the requested error is not reached (max_err: the table's measured error).
-  subroutine pair_table_probe(law, p, a, r_lo, r_hi, requested, n, r, tab, ex, mag, max_err, &
+  !> A pair evaluation (&integration / &steric pair_eval; ev: 2 table, 3 single, 4 rsqrt) built
+  !> and measured as a run builds it, and evaluated at the n distances r through the routines
+  !> the pair loops use: law 1 = dipole over [r_lo, r_hi] with shift a (r_c^-4 or 0): tab(:, 1)
+  !> the force factor r^-5 - a r^-1, tab(:, 2) r^-3, ex the exact kernel's, mag the scales of
+  !> the relative error (r^-5 + a r^-1, r^-3); law 2 = Lennard-Jones with exponent p (u0 1,
+  !> r_m = r_lo, R = r_hi) and only column 1 (mag: its terms' magnitudes). code 0, or 2 when the
+  !> requested error is not reached (max_err, rms_err: the errors measured at load; segments:
+  !> the table's, 0 for the others).
+  subroutine pair_eval_probe(ev, law, p, a, r_lo, r_hi, requested, n, r, tab, ex, mag, max_err, &
        rms_err, segments, code)
-    integer, intent(in) :: law, p, n
+    integer, intent(in) :: ev, law, p, n
     real(dp), intent(in) :: a, r_lo, r_hi, requested, r(n)
     real(dp), intent(out) :: tab(n, 2), ex(n, 2), mag(n, 2), max_err, rms_err
     integer, intent(out) :: segments, code
@@ -262,13 +264,22 @@ contains
     type(lj_law_t) :: l, inside
     logical :: ok
     integer :: i
-    real(dp) :: v(2), u, q
+    real(dp) :: u(n), q
     tab = 0; ex = 0; mag = 1
+    u = r**2
     if (law == 1) then
-      call dipole_table(a, r_lo**2, r_hi**2, requested, t, ok)
+      call dipole_eval_build(ev, a, r_lo**2, r_hi**2, requested, t, ok)
+      tab = 1   ! the weights dipole_eval multiplies
+      do i = 1, n, 256
+        call dipole_eval(min(256, n - i + 1), u(i:), a, split_t(), huge(1.0_dp), 1.0_dp, 1.0_dp, &
+             tab(i:, 1), tab(i:, 2), t)
+      end do
     else
       l = lj_law(p, 1.0_dp, r_lo, r_hi)
-      call lj_table(l, requested, t, ok)
+      call lj_eval_build(ev, l, requested, t, ok)
+      do i = 1, n, 256
+        call lj_chunk(l, min(256, n - i + 1), u(i:), tab(i:, 1), t)
+      end do
       inside = l
       inside%rm2 = 0
       inside%rc2 = huge(1.0_dp)
@@ -278,20 +289,17 @@ contains
     rms_err = t%rms_err
     segments = t%n
     do i = 1, n
-      u = r(i)**2
-      call table_values(t, u, v)
-      tab(i, 1:t%nq) = v(1:t%nq)
       if (law == 1) then
-        call dipole_kernel(u, a, ex(i, 1), ex(i, 2))
-        mag(i, 1) = u**(-2.5_dp) + a*u**(-0.5_dp)
+        call dipole_kernel(u(i), a, ex(i, 1), ex(i, 2))
+        mag(i, 1) = u(i)**(-2.5_dp) + a*u(i)**(-0.5_dp)
         mag(i, 2) = ex(i, 2)
       else
-        call lj_kernel(inside, u, ex(i, 1))
+        call lj_kernel(inside, u(i), ex(i, 1))
         q = (2.0_dp/r(i))**p
-        mag(i, 1) = l%c4p/u*(2*q*q + q)
+        mag(i, 1) = l%c4p/u(i)*(2*q*q + q)
       end if
     end do
-  end subroutine pair_table_probe
+  end subroutine pair_eval_probe
 
   !> Protocol of the loaded scene: heights [D1] and phase durations [T].
   subroutine protocol_times(h_start, h0, hf, t_relax, t_comp, t_total)

@@ -14,7 +14,8 @@ module engine
   use initial, only: place_particles
   use start_file, only: start_t
   use pair_forces, only: pair_forces_all, pair_forces_list, pair_forces_far, pair_energy_all, &
-       dipole_table, max_bits
+       dipole_eval_build, max_bits
+  use pair_table, only: eval_code, eval_exact, eval_table
   use scene_input, only: real_str, int_str
   use parallel, only: init_threads, par_min_loop, my_share
   use neighbours, only: nlist_t, nlist_setup, nlist_refresh, nb_all_pairs, nb_verlet
@@ -64,21 +65,26 @@ contains
     call build_rest(sim, st)
   end subroutine sim_load
 
-  !> &integration pair_eval = 'table': the dipole table over r in [min_distance, r_hi] (r_hi:
-  !> the cell's diagonal with all pairs or a far field, else r_c + skin, the farthest listed
-  !> pair), to the requested pair_table_error; refused when the finest table misses it.
+  !> &integration pair_eval /= 'exact': the dipole law's evaluation (table, single, rsqrt) over
+  !> r in [min_distance, r_hi] (r_hi: the cell's diagonal with all pairs or a far field, else
+  !> r_c + skin, the farthest listed pair), measured at load against the exact law; refused
+  !> when its largest error exceeds pair_table_error (a table: when the finest one does).
   subroutine build_pair_table(sim, path, st)
     type(sim_t), intent(inout) :: sim
     character(len=*), intent(in) :: path
     type(status_t), intent(inout) :: st
     real(dp) :: r_lo, r_hi
     logical :: ok
+    integer :: code
+    character(len=:), allocatable :: what
     associate (sc => sim%sc, m => sim%m)
-      if (trim(sc%pair_eval) /= 'table' .or. m%pair_law /= law_dipole) return
+      code = eval_code(sc%pair_eval)
+      if (code == eval_exact .or. m%pair_law /= law_dipole) return
       r_lo = sc%min_distance
       if (r_lo <= 0) then
-        call set_error(st, exit_bad_input, trim(path)//': &integration pair_eval = ''table'': '// &
-             'needs &physics min_distance in (0, 1] D1 (the table''s lower end; it is 0)')
+        call set_error(st, exit_bad_input, trim(path)//': &integration pair_eval = '''// &
+             trim(sc%pair_eval)//''': needs &physics min_distance in (0, 1] D1 (the lower end '// &
+             'of the range its error is measured over; it is 0)')
         return
       end if
       if (m%neighbour == nb_all_pairs .or. m%tail_frozen) then
@@ -86,11 +92,13 @@ contains
       else
         r_hi = m%r_cut + m%skin
       end if
-      call dipole_table(m%shift4, r_lo**2, r_hi**2, sc%pair_table_error, m%tab, ok)
+      call dipole_eval_build(code, m%shift4, r_lo**2, r_hi**2, sc%pair_table_error, m%tab, ok)
+      what = 'pair_eval = '''//trim(sc%pair_eval)//''''
+      if (code == eval_table) what = 'the finest table, '//int_str(2_i8**max_bits)// &
+           ' segments per octave of r^2,'
       if (.not. ok) call set_error(st, exit_bad_input, trim(path)//': &integration '// &
            'pair_table_error = '//real_str(sc%pair_table_error)//': not reached over r in ['// &
-           real_str(r_lo)//', '//real_str(r_hi)//'] D1 (the finest table, '// &
-           int_str(2_i8**max_bits)//' segments per octave of r^2, reaches '// &
+           real_str(r_lo)//', '//real_str(r_hi)//'] D1 ('//what//' reaches '// &
            real_str(m%tab%max_err)//'); allowed ['//real_str(m%tab%max_err)//', 1e-2]')
     end associate
   end subroutine build_pair_table

@@ -10,6 +10,7 @@ module scene
   use scene_input, only: printable, real_str
   use schema, only: schema_t
   use memory, only: check_memory_need
+  use pair_table, only: eval_names
   implicit none
   private
 
@@ -70,8 +71,8 @@ module scene
                                          !< (<0: 0 = sharp for 'frozen', 1 D1 for 'linear')
     character(len=name_len) :: friction_velocity = 'lagged'  !< | 'implicit' (Verlet schemes)
     real(dp) :: target_rel_error = 0.0_dp  !< read by pyorch (bench table), ignored by the engine
-    character(len=name_len) :: pair_eval = 'exact'   !< | 'table' (in r^2, to pair_table_error)
-    real(dp) :: pair_table_error = 1.0e-6_dp  !< pair_eval = 'table': largest relative force error
+    character(len=name_len) :: pair_eval = 'exact'   !< | 'table' | 'single' | 'rsqrt'
+    real(dp) :: pair_table_error = 1.0e-6_dp  !< pair_eval /= 'exact': largest relative force error
     ! &protocol
     character(len=name_len) :: piston = 'prescribed'  !< 'prescribed' | 'fixed' | 'none'
     real(dp) :: h_start = -1.0_dp        !< piston height at t = 0 [D1] (<0: cell height)
@@ -221,11 +222,12 @@ contains
     call s%key('target_rel_error', sc%target_rel_error, '1', 'read by pyorch: the cheapest '// &
          'measured setting meeting it (0 = off; the engine ignores it)', lo=0.0_dp, hi=1.0_dp)
     call s%key('pair_eval', sc%pair_eval, '', 'dipole force evaluation: exact (the '// &
-         'reference) or a table in r^2 (no sqrt, no division) built at load to '// &
-         'pair_table_error', choices='exact|table')
-    call s%key('pair_table_error', sc%pair_table_error, '1', 'pair_eval = table: largest '// &
+         'reference), a table in r^2 (no sqrt, no division) built at load to '// &
+         'pair_table_error, single precision pair arithmetic (double sums), or rsqrt (r^-1 '// &
+         'by three Newton steps: no sqrt, no division)', choices=eval_names)
+    call s%key('pair_table_error', sc%pair_table_error, '1', 'pair_eval /= exact: largest '// &
          'relative error of the pair force and r^-3 sums over [min_distance, the farthest '// &
-         'pair] (measured at load)', lo=1.0e-15_dp, hi=1.0e-2_dp)
+         'pair] (measured at load; refused when not met)', lo=1.0e-15_dp, hi=1.0e-2_dp)
     call s%group('protocol', 'the piston (Algorithm 2.1); lengths in D1, times in T')
     call s%key('piston', sc%piston, '', 'prescribed schedule, fixed at h_start, none, or a '// &
          'free body', choices='prescribed|fixed|none|free')

@@ -26,8 +26,8 @@ module lj_box
   use neighbours, only: nlist_t, nlist_setup, nlist_refresh, nlist_owners, nb_all_pairs, &
        nb_cells, nb_verlet
   use pair_forces, only: lj_law_t, lj_law, pair_forces_all, pair_forces_list, lj_energy, &
-       lj_table, pair_table_t, max_bits
-  use pair_table, only: table_json
+       lj_eval_build, pair_table_t, max_bits
+  use pair_table, only: table_json, eval_names, eval_code, eval_exact, eval_table
   use fields, only: field_t, field_add, field_potential, field_has_potential, &
        field_read_table, field_shapes, field_modulations, field_static
   use mirror_walls, only: mirror_reflect
@@ -86,8 +86,8 @@ module lj_box
     real(dp) :: r_cut = 5                   !< R [a]
     character(len=nm) :: neighbour = 'verlet'
     real(dp) :: skin = 0.6_dp               !< [a]
-    character(len=nm) :: pair_eval = 'exact'   !< | 'table' (in r^2, to pair_table_error)
-    real(dp) :: pair_table_error = 1.0e-6_dp  !< pair_eval = 'table': largest relative force error
+    character(len=nm) :: pair_eval = 'exact'   !< | 'table' | 'single' | 'rsqrt'
+    real(dp) :: pair_table_error = 1.0e-6_dp  !< pair_eval /= 'exact': largest relative force error
     ! &physics
     real(dp) :: alpha = 0                   !< eq. (7)
     ! &field (parameters in self%fl)
@@ -174,12 +174,13 @@ contains
          'all pairs', choices=join(neighbour_names))
     call s%key('skin', self%skin, 'a', 'Verlet list skin (> 0 with neighbour = ''verlet'')', &
          lo=0.0_dp, hi=1.0e3_dp)
-    call s%key('pair_eval', self%pair_eval, '', 'force evaluation: exact (the reference) or a '// &
-         'table in r^2 between r_m and r_cut (no division) built at load to pair_table_error', &
-         choices='exact|table')
-    call s%key('pair_table_error', self%pair_table_error, '1', 'pair_eval = table: largest '// &
+    call s%key('pair_eval', self%pair_eval, '', 'force evaluation: exact (the reference), a '// &
+         'table in r^2 between r_m and r_cut (no division) built at load to pair_table_error, '// &
+         'or for p = 6 single precision pair arithmetic (double sums) or rsqrt (1/r^2 by '// &
+         'three Newton steps: no division)', choices=eval_names)
+    call s%key('pair_table_error', self%pair_table_error, '1', 'pair_eval /= exact: largest '// &
          'error of the force over [r_m, r_cut], relative to the sum of its two terms'' '// &
-         'magnitudes (measured at load)', lo=1.0e-15_dp, hi=1.0e-2_dp)
+         'magnitudes (measured at load; refused when not met)', lo=1.0e-15_dp, hi=1.0e-2_dp)
     call s%group('physics', 'the drag')
     call s%key('alpha', self%alpha, '1', 'Stokes drag -(9/2) alpha v (eq. 7)', lo=0.0_dp, &
          hi=1.0e6_dp)
@@ -329,6 +330,7 @@ contains
     type(status_t), intent(inout) :: st
     real(dp) :: norm, need_lo, need_hi
     logical :: ok
+    character(len=:), allocatable :: what
     associate (f => self%fl)
       if (f%shape == 3 .or. f%shape == 4) then   ! the direction in use; ex, ey stay as given
         norm = sqrt(f%ex**2 + f%ey**2)
@@ -360,14 +362,23 @@ contains
     self%method = method_codes(choice_index(self%integrator, method_names))
     self%steric_on = trim(self%law) == 'lj'
     self%lj = lj_law(int(self%p), self%u0, self%r_m, self%r_cut)
-    if (self%steric_on .and. trim(self%pair_eval) == 'table') then
-      call lj_table(self%lj, self%pair_table_error, self%ljtab, ok)
+    if (self%steric_on .and. eval_code(self%pair_eval) /= eval_exact) then
+      if (eval_code(self%pair_eval) /= eval_table .and. self%p /= 6) then
+        call set_error(st, exit_bad_input, '&steric pair_eval = '''//trim(self%pair_eval)// &
+             ''': exists for p = 6 only (p = '//int_str(int(self%p, i8))//'); allowed for '// &
+             'this p: exact, table')
+        return
+      end if
+      call lj_eval_build(eval_code(self%pair_eval), self%lj, self%pair_table_error, &
+           self%ljtab, ok)
       if (.not. ok) then
+        what = 'pair_eval = '''//trim(self%pair_eval)//''''
+        if (eval_code(self%pair_eval) == eval_table) what = 'the finest table, '// &
+             int_str(2_i8**max_bits)//' segments per octave of r^2,'
         call set_error(st, exit_bad_input, '&steric pair_table_error = '// &
              real_str(self%pair_table_error)//': not reached over r in ['//real_str(self%r_m)// &
-             ', '//real_str(self%r_cut)//'] a (the finest table, '//int_str(2_i8**max_bits)// &
-             ' segments per octave of r^2, reaches '//real_str(self%ljtab%max_err)// &
-             '); allowed ['//real_str(self%ljtab%max_err)//', 1e-2]')
+             ', '//real_str(self%r_cut)//'] a ('//what//' reaches '// &
+             real_str(self%ljtab%max_err)//'); allowed ['//real_str(self%ljtab%max_err)//', 1e-2]')
         return
       end if
     end if

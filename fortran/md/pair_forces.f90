@@ -10,25 +10,36 @@
 !> truncated Lennard-Jones of seed 000 (eqs. 3-5, kind 'lj_box'): selected by
 !> the optional `law` argument (type lj_law_t); mu = 1, k_pair = 1, no r^-3 sums.
 !>
-!> Either law may be evaluated from a table in r^2 (module pair_table; the optional `tab`
-!> argument, on when tab%on): no square root, no division; built once at load by
-!> dipole_table / lj_table to a requested relative error, measured here against the exact
-!> kernels. Each pass selects exact or table outside its loops, as it selects the law.
+!> Either law may be evaluated more cheaply (the optional `tab` argument, a pair_table_t, its
+!> `eval`; module pair_table): from a table in r^2 (no square root, no division; built once at
+!> load by dipole_table / lj_table to a requested relative error), in single precision (the
+!> law's arithmetic from the double r^2; separations and sums stay double), or with r^-1 from
+!> a bit-level guess and three Newton steps (rsqrt3: multiplies and adds only). Each is
+!> measured at load against the exact kernels over the run's range (dipole_eval_build,
+!> lj_eval_build). One loop structure for every evaluation: the loops compute the distances
+!> and the sums and hand the law to dipole_eval or lj_chunk, which choose the evaluation
+!> outside their loops; the lane loops of dipole_ranges (dipole_ranges.inc) are compiled once
+!> per evaluation, each with its own lane kernel.
 module pair_forces
+  use, intrinsic :: iso_fortran_env, only: sp => real32
   use kinds, only: dp, i8
-  use pair_table, only: pair_table_t, law_i, table_pieces, segment_bounds, max_bits
+  use pair_table, only: pair_table_t, law_i, table_pieces, segment_bounds, max_bits, &
+       eval_exact, eval_table, eval_single, eval_rsqrt
   implicit none
   private
 
   public :: dipole_kernel, pair_forces_all, pair_forces_list, pair_forces_far, pair_energy_all
   public :: lj_law_t, lj_law, lj_kernel, lj_energy
   public :: split_t, split_of
-  public :: pair_table_t, dipole_table, lj_table, table_values, max_bits
+  public :: pair_table_t, dipole_table, lj_table, max_bits
+  public :: dipole_eval_build, lj_eval_build, dipole_eval, lj_chunk, rsqrt3
 
   integer, parameter :: samples = 16   !< error samples inside each table segment (and its ends)
   !> a table is accepted when its measured error times this is within the request (the samples
   !> may miss a segment's largest error by a little; tests check a dense grid of r)
   real(dp), parameter :: margin = 1.05_dp
+  !> points (uniform in log r^2, and both ends) at which single and rsqrt are measured at load
+  integer, parameter :: eval_samples = 65536
 
   integer, parameter :: mode_all = 1, mode_list = 2
   !> Mean listed pairs per row from which dipole lists go row by row (rows_list) instead of as
@@ -113,6 +124,72 @@ contains
     s5 = s3*r2inv - shift4*rinv
   end subroutine dipole_kernel
 
+  !> dipole_kernel in single precision (pair_eval = 'single'): r2 rounded to single (and kept
+  !> >= 1e-12 D1^2, so no lane overflows), one single division and square root; s5, s3 are
+  !> returned in double for the double sums. Relative error a few 1e-7 (measured at load).
+  pure elemental subroutine dipole_kernel_sp(r2, shift4, s5, s3)
+    real(dp), intent(in) :: r2, shift4
+    real(dp), intent(out) :: s5, s3
+    real(sp) :: r2inv, rinv, c
+    r2inv = 1.0_sp/real(max(r2, 1.0e-12_dp), sp)
+    rinv = sqrt(r2inv)
+    c = r2inv*rinv
+    s3 = real(c, dp)
+    s5 = real(c*r2inv - real(shift4, sp)*rinv, dp)
+  end subroutine dipole_kernel_sp
+
+  !> dipole_kernel with r^-1 from rsqrt3 (pair_eval = 'rsqrt'): no square root, no division.
+  pure elemental subroutine dipole_kernel_rs(r2, shift4, s5, s3)
+    real(dp), intent(in) :: r2, shift4
+    real(dp), intent(out) :: s5, s3
+    real(dp) :: rinv, r2inv
+    rinv = rsqrt3(r2)
+    r2inv = rinv*rinv
+    s3 = r2inv*rinv
+    s5 = s3*r2inv - shift4*rinv
+  end subroutine dipole_kernel_rs
+
+  !> 1/sqrt(u) for a normal u > 0 with multiplies and adds only: a guess from the bits of u
+  !> (largest relative error 3.4e-2) refined by three Newton steps t <- t (3/2 - (u/2) t^2),
+  !> each squaring the error (3.4e-2 -> 1.8e-3 -> 4.7e-6 -> 3.3e-11, always from below).
+  pure elemental real(dp) function rsqrt3(u) result(t)
+    real(dp), intent(in) :: u
+    integer(i8), parameter :: magic = int(z'5FE6EB50C7B537A9', i8)
+    real(dp) :: h
+    t = transfer(magic - shiftr(transfer(u, 0_i8), 1), 1.0_dp)
+    h = 0.5_dp*u
+    t = t*(1.5_dp - h*t*t)
+    t = t*(1.5_dp - h*t*t)
+    t = t*(1.5_dp - h*t*t)
+  end function rsqrt3
+
+  !> The dipole law by evaluation ev (exact when absent or eval_exact) at nk squared distances
+  !> r2s [D1^2], weighted: c(m) = S ci c(m) s5 with the force factor s5 = r^-5 - shift4 r^-1
+  !> and r3(m) = S w3 r^-3, S the mask at rk2 or the split's near side (ci, w3 and c(m) on
+  !> entry: the callers' factors); the loops of dipole_eval.inc, as the pair loops run them;
+  !> nk <= pair_chunk.
+  subroutine dipole_eval(nk, r2s, shift4, sp, rk2, ci, w3, c, r3, tab)
+    integer, intent(in) :: nk
+    real(dp), intent(in) :: r2s(nk), shift4, rk2, ci, w3
+    type(split_t), intent(in) :: sp
+    real(dp), intent(inout) :: c(nk), r3(nk)
+    type(pair_table_t), intent(in), optional :: tab
+    integer(i8) :: ks(pair_chunk), tn
+    real(dp) :: ds(pair_chunk), e5, e3, keep
+    integer :: m, code
+    code = eval_exact
+    if (present(tab)) code = tab%eval
+    include 'dipole_eval.inc'
+  end subroutine dipole_eval
+
+  !> The dipole table's two pieces (row tc of c(8, n)) at offset d: force factor s5 and r^-3.
+  pure subroutine table_piece(tc, d, s5, s3)
+    real(dp), intent(in) :: tc(8), d
+    real(dp), intent(out) :: s5, s3
+    s5 = tc(1) + d*(tc(2) + d*(tc(3) + d*tc(4)))
+    s3 = tc(5) + d*(tc(6) + d*(tc(7) + d*tc(8)))
+  end subroutine table_piece
+
   !> The law with exponent p, depth u0 [m g a], lower cut-off rm [a] (rm > 0) and
   !> cut-off rc [a] (plain truncation, as eq. 3: force and energy jump at R).
   pure function lj_law(p, u0, rm, rc) result(l)
@@ -153,58 +230,80 @@ contains
   end subroutine lj_kernel
 
   !> p = 6 above r_m (no sqrt, no branch: vectorises); r2 at or below r_m^2 is evaluated at
-  !> r_m and flagged (core = 1) for lj_chunk's fix-up with the core force.
-  pure elemental subroutine lj6_kernel(c4p, rm2, rc2, r2, s, core)
+  !> r_m (lj_chunk fixes those pairs up with the core force).
+  pure elemental subroutine lj6_kernel(c4p, rm2, rc2, r2, s)
     real(dp), intent(in) :: c4p, rm2, rc2, r2
     real(dp), intent(out) :: s
-    integer, intent(out) :: core
     real(dp) :: w, q
     w = 4.0_dp/max(r2, rm2)
     q = w*w*w
     s = 0.25_dp*c4p*w*(2*q*q - q)*merge(1.0_dp, 0.0_dp, r2 < rc2)
-    core = merge(1, 0, r2 <= rm2)
   end subroutine lj6_kernel
 
-  !> The Lennard-Jones kernel of the law over a chunk of nk squared distances (the law's
-  !> numbers copied to locals first: the loop then vectorises). Pairs inside the linear
-  !> core (rare) get |U'(r_m)|/r in a second, scalar loop run only when the chunk has any.
+  !> lj6_kernel in single precision (pair_eval = 'single'; the factor returned in double).
+  pure elemental subroutine lj6_kernel_sp(c4p, rm2, rc2, r2, s)
+    real(dp), intent(in) :: c4p, rm2, rc2, r2
+    real(dp), intent(out) :: s
+    real(sp) :: w, q
+    w = 4.0_sp/real(max(r2, rm2), sp)
+    q = w*w*w
+    s = real(0.25_sp*real(c4p, sp)*w*(2*q*q - q), dp)*merge(1.0_dp, 0.0_dp, r2 < rc2)
+  end subroutine lj6_kernel_sp
+
+  !> lj6_kernel with 1/r^2 = rsqrt3(r^2)^2 (pair_eval = 'rsqrt'): no division.
+  pure elemental subroutine lj6_kernel_rs(c4p, rm2, rc2, r2, s)
+    real(dp), intent(in) :: c4p, rm2, rc2, r2
+    real(dp), intent(out) :: s
+    real(dp) :: w, q
+    w = rsqrt3(max(r2, rm2))
+    w = 4.0_dp*w*w
+    q = w*w*w
+    s = 0.25_dp*c4p*w*(2*q*q - q)*merge(1.0_dp, 0.0_dp, r2 < rc2)
+  end subroutine lj6_kernel_rs
+
+  !> The Lennard-Jones kernel of the law over a chunk of nk squared distances, by the
+  !> evaluation of tab (exact when absent; table for any p, single and rsqrt for p = 6), chosen
+  !> here outside the loops (the law's numbers copied to locals first: the loops then
+  !> vectorise). Pairs inside the linear core (rare) get |U'(r_m)|/r exactly in a second,
+  !> scalar loop run only when the chunk has any.
   subroutine lj_chunk(l, nk, r2s, cs, tab)
     type(lj_law_t), intent(in) :: l
     integer, intent(in) :: nk
     real(dp), intent(in) :: r2s(nk)
     real(dp), intent(out) :: cs(nk)
-    type(pair_table_t), intent(in), optional :: tab   !< the law's table (when on), any p
+    type(pair_table_t), intent(in), optional :: tab   !< the law's evaluation
     real(dp) :: c4p, rm2, rc2, lo2, hi2, d
-    integer :: m, cores, core, shift
+    integer :: m, shift, ev
     integer(i8) :: tn, base, k
-    if (present(tab)) then
-      if (tab%on) then   ! the table between r_m and R; the core and the cut-off as below
-        rm2 = l%rm2; rc2 = l%rc2
-        tn = tab%n; shift = tab%shift; base = tab%base; lo2 = tab%lo2; hi2 = tab%hi2
-        do m = 1, nk
-          call table_seg(r2s(m), lo2, hi2, tn, shift, base, k, d)
-          cs(m) = (tab%c(1, k) + d*(tab%c(2, k) + d*(tab%c(3, k) + d*tab%c(4, k))))* &
-               merge(1.0_dp, 0.0_dp, r2s(m) < rc2)
-        end do
-        ! (no core count in the loop above: with it, it does not vectorise)
-        if (minval(r2s(1:nk)) > rm2) return
-        do m = 1, nk
-          if (r2s(m) <= rm2) cs(m) = l%fcore*sqrt(1.0_dp/r2s(m))
-        end do
-        return
-      end if
-    end if
-    if (l%kernel /= kernel_lj6) then
+    ev = eval_exact
+    if (present(tab)) ev = tab%eval
+    if (l%kernel /= kernel_lj6 .and. ev /= eval_table) then
       call lj_kernel(l, r2s, cs)
       return
     end if
     c4p = l%c4p; rm2 = l%rm2; rc2 = l%rc2
-    cores = 0
+    select case (ev)
+    case (eval_table)   ! the table between r_m and R; the core and the cut-off as below
+      tn = tab%n; shift = tab%shift; base = tab%base; lo2 = tab%lo2; hi2 = tab%hi2
+      do m = 1, nk
+        call table_seg(r2s(m), lo2, hi2, tn, shift, base, k, d)
+        cs(m) = (tab%c(1, k) + d*(tab%c(2, k) + d*(tab%c(3, k) + d*tab%c(4, k))))* &
+             merge(1.0_dp, 0.0_dp, r2s(m) < rc2)
+      end do
+    case (eval_single)
+      call lj6_kernel_sp(c4p, rm2, rc2, r2s, cs)
+    case (eval_rsqrt)
+      call lj6_kernel_rs(c4p, rm2, rc2, r2s, cs)
+    case default
+      call lj6_kernel(c4p, rm2, rc2, r2s, cs)
+    end select
+    ! (no core count in the loops above: with it, the table's does not vectorise; and a loop,
+    ! not minval, which GCC 12 does not vectorise: 5 % of the lj_box step)
+    d = huge(1.0_dp)
     do m = 1, nk
-      call lj6_kernel(c4p, rm2, rc2, r2s(m), cs(m), core)
-      cores = cores + core
+      d = min(d, r2s(m))
     end do
-    if (cores == 0) return
+    if (d > rm2) return
     do m = 1, nk
       if (r2s(m) <= rm2) cs(m) = l%fcore*sqrt(1.0_dp/r2s(m))
     end do
@@ -369,6 +468,103 @@ contains
       mag(1) = l%c4p*(a + b)
     end subroutine law
   end subroutine lj_table
+
+  !> The dipole law's evaluation `code` (eval_*) over r^2 in [lo2, hi2] [D1^2] for a run: the
+  !> exact law (t off), the table (dipole_table), or single / rsqrt, whose largest and rms
+  !> relative errors (s5 relative to r^-5 + shift4 r^-1, and r^-3) are measured on
+  !> eval_samples points uniform in log r^2 (and both ends) through dipole_eval, the routine
+  !> the loops use; ok = .false. when the largest error times margin exceeds `requested`.
+  subroutine dipole_eval_build(code, shift4, lo2, hi2, requested, t, ok)
+    integer, intent(in) :: code
+    real(dp), intent(in) :: shift4, lo2, hi2, requested
+    type(pair_table_t), intent(out) :: t
+    logical, intent(out) :: ok
+    real(dp), allocatable :: u(:), v(:, :), ex(:, :), mag(:, :)
+    integer :: m0
+    ok = .true.
+    if (code == eval_exact) return
+    if (code == eval_table) then
+      call dipole_table(shift4, lo2, hi2, requested, t, ok)
+      return
+    end if
+    allocate(u(eval_samples), v(eval_samples, 2), ex(eval_samples, 2), mag(eval_samples, 2))
+    call eval_grid(code, lo2, hi2, requested, t, u)
+    v = 1
+    do m0 = 1, eval_samples, pair_chunk
+      call dipole_eval(min(pair_chunk, eval_samples - m0 + 1), u(m0:), shift4, split_t(), &
+           huge(1.0_dp), 1.0_dp, 1.0_dp, v(m0:, 1), v(m0:, 2), t)
+    end do
+    call dipole_kernel(u, shift4, ex(:, 1), ex(:, 2))
+    mag(:, 1) = u**(-2.5_dp) + shift4*u**(-0.5_dp)
+    mag(:, 2) = ex(:, 2)
+    call eval_errors(abs(v - ex)/mag, requested, t, ok)
+  end subroutine dipole_eval_build
+
+  !> The Lennard-Jones law's evaluation `code` for a run, as dipole_eval_build: over [r_m^2,
+  !> R^2) [a^2] through lj_chunk, the error relative to the magnitudes of the law's two terms
+  !> (as lj_table). single and rsqrt exist for p = 6 only (ok = .false. otherwise, max_err 0).
+  subroutine lj_eval_build(code, l, requested, t, ok)
+    integer, intent(in) :: code
+    type(lj_law_t), intent(in) :: l
+    real(dp), intent(in) :: requested
+    type(pair_table_t), intent(out) :: t
+    logical, intent(out) :: ok
+    real(dp), allocatable :: u(:), v(:, :), ex(:, :), mag(:, :), q(:)
+    type(lj_law_t) :: inside
+    integer :: m0
+    ok = .true.
+    if (code == eval_exact) return
+    if (code == eval_table) then
+      call lj_table(l, requested, t, ok)
+      return
+    end if
+    ok = l%kernel == kernel_lj6
+    if (.not. ok) return
+    allocate(u(eval_samples), v(eval_samples, 1), ex(eval_samples, 1), mag(eval_samples, 1), &
+         q(eval_samples))
+    ! [r_m^2, R^2): the power law's end at r_m is evaluated as the loops do (at r_m: not a core
+    ! pair), R^2 itself is beyond the cut-off
+    call eval_grid(code, l%rm2*(1 + epsilon(1.0_dp)), l%rc2*(1 - epsilon(1.0_dp)), requested, t, u)
+    do m0 = 1, eval_samples, pair_chunk
+      call lj_chunk(l, min(pair_chunk, eval_samples - m0 + 1), u(m0:), v(m0:, 1), t)
+    end do
+    inside = l
+    inside%rm2 = 0
+    inside%rc2 = huge(1.0_dp)
+    call lj_kernel(inside, u, ex(:, 1))
+    q = (4.0_dp/u)**(l%p/2)
+    mag(:, 1) = l%c4p/u*(2*q*q + q)
+    call eval_errors(abs(v - ex)/mag, requested, t, ok)
+    t%lo2 = l%rm2
+    t%hi2 = l%rc2
+  end subroutine lj_eval_build
+
+  !> Evaluation `code` over [lo2, hi2] (t: no table) and its error samples u: uniform in log u
+  !> from lo2 to hi2, both ends included.
+  pure subroutine eval_grid(code, lo2, hi2, requested, t, u)
+    integer, intent(in) :: code
+    real(dp), intent(in) :: lo2, hi2, requested
+    type(pair_table_t), intent(out) :: t
+    real(dp), intent(out) :: u(:)
+    integer :: m
+    t%eval = code
+    t%lo2 = lo2
+    t%hi2 = hi2
+    t%requested = requested
+    u = [(lo2*(hi2/lo2)**(real(m - 1, dp)/real(size(u) - 1, dp)), m = 1, size(u))]
+    u(size(u)) = hi2
+  end subroutine eval_grid
+
+  !> t%max_err, t%rms_err from the relative errors e of every sample and quantity; ok when
+  !> the largest times margin is within `requested`.
+  pure subroutine eval_errors(e, requested, t, ok)
+    real(dp), intent(in) :: e(:, :), requested
+    type(pair_table_t), intent(inout) :: t
+    logical, intent(out) :: ok
+    t%max_err = maxval(e)
+    t%rms_err = sqrt(sum(e*e)/real(size(e), dp))
+    ok = t%max_err*margin <= requested .and. t%max_err == t%max_err
+  end subroutine eval_errors
 
   !> O(N^2) reference: every pair once, Newton's third law applied exactly.
   !> Adds to fx, fy (n) [m1 g]; if with_r3, adds to s3 (n).
@@ -552,19 +748,15 @@ contains
     integer, parameter :: chunk = 256
     integer :: i, j, m, k0, nk
     logical :: direct
-    type(pair_table_t), intent(in), optional :: tab   !< the dipole table (used when on)
-    real(dp) :: xi, yi, ci, wi, fxi, fyi, s3i, r2, keep, low, d, ds(chunk)
-    integer(i8) :: kt, ks(chunk)
-    real(dp) :: dxs(chunk), dys(chunk), cs(chunk), r3s(chunk)
-    logical :: tabled
-    integer :: shift
-    integer(i8) :: tn, base
-    real(dp) :: lo2, hi2
-    tabled = .false.
-    if (present(tab)) tabled = tab%on
-    if (tabled) then
-      tn = tab%n; shift = tab%shift; base = tab%base; lo2 = tab%lo2; hi2 = tab%hi2
-    end if
+    type(pair_table_t), intent(in), optional :: tab   !< the dipole law's evaluation
+    real(dp) :: xi, yi, ci, wi, fxi, fyi, s3i, low, rk2, e5, e3, keep
+    real(dp) :: dxs(chunk), dys(chunk), cs(chunk), r3s(chunk), r2s(chunk), ds(chunk)
+    integer(i8) :: ks(chunk), tn
+    integer :: code
+    code = eval_exact
+    if (present(tab)) code = tab%eval
+    rk2 = huge(1.0_dp)   ! pairs at r >= r_c skipped only with check
+    if (check) rk2 = rc2
     low = r2low   ! local running minimum (see row_segment)
     do i = i_lo, i_hi
       xi = x(i); yi = y(i)
@@ -573,40 +765,17 @@ contains
       fxi = 0; fyi = 0; s3i = 0
       do k0 = start(i), start(i + 1) - 1, chunk
         nk = min(chunk, start(i + 1) - k0)
-        if (tabled) then   ! the same loop with the table's kernel
-          do m = 1, nk   ! (segments, then pieces: see rows_pairs)
-            j = nbr(k0 + m - 1)
-            dxs(m) = xi - x(j)
-            dys(m) = yi - y(j)
-            r2 = dxs(m)*dxs(m) + dys(m)*dys(m)
-            low = min(low, r2)
-            ! branch-free (the tests of the exact loop, not unswitched here, stop vectorisation):
-            ! S(r) is 1 without a split and 0 from r_c on, so this is the exact loop's weight
-            r3s(m) = merge(1.0_dp, 0.0_dp, r2 < rc2 .or. .not. check)*near_weight(sp, r2)  ! keep
-            cs(m) = r3s(m)*ci*mu(j)
-            call table_seg(r2, lo2, hi2, tn, shift, base, ks(m), ds(m))
-          end do
-          do m = 1, nk
-            kt = ks(m)
-            d = ds(m)
-            r3s(m) = r3s(m)*(tab%c(5, kt) + d*(tab%c(6, kt) + d*(tab%c(7, kt) + d*tab%c(8, kt))))
-            cs(m) = cs(m)*(tab%c(1, kt) + d*(tab%c(2, kt) + d*(tab%c(3, kt) + d*tab%c(4, kt))))
-          end do
-        else
-          do m = 1, nk
-            j = nbr(k0 + m - 1)
-            dxs(m) = xi - x(j)
-            dys(m) = yi - y(j)
-            r2 = dxs(m)*dxs(m) + dys(m)*dys(m)
-            low = min(low, r2)
-            keep = 1
-            if (check) keep = merge(1.0_dp, 0.0_dp, r2 < rc2)
-            if (sp%on) keep = near_weight(sp, r2)
-            call dipole_kernel(r2, shift4, cs(m), r3s(m))
-            cs(m) = keep*ci*mu(j)*cs(m)
-            r3s(m) = keep*r3s(m)
-          end do
-        end if
+        do m = 1, nk   ! distances and weights (gathers)
+          j = nbr(k0 + m - 1)
+          dxs(m) = xi - x(j)
+          dys(m) = yi - y(j)
+          r2s(m) = dxs(m)*dxs(m) + dys(m)*dys(m)
+          low = min(low, r2s(m))
+          cs(m) = mu(j)
+        end do
+        associate (c => cs, r3 => r3s, w3 => 1.0_dp)   ! the law
+          include 'dipole_eval.inc'
+        end associate
         direct = hi_direct >= n
         if (.not. direct) direct = maxval(nbr(k0:k0 + nk - 1)) <= hi_direct
         if (direct) then   ! the usual case: every j is ours
@@ -688,157 +857,61 @@ contains
   !> range (masked: exact zeros) while they stay <= j_pad, the last entry of ax, ay, a3 this
   !> caller owns (<= n); the rest runs lane by lane. a3, s3 get exact zeros without with_r3.
   !> r2low: running minimum of r^2 over the ranges.
-  subroutine dipole_ranges(sp, side, i_lo, i_hi, j_min, j_max, j_pad, x, y, mu, wsin, k_pair, &
-       r2_lo, r2_hi, shift4, with_r3, rstart, rlo, rhi, ax, ay, a3, rsum, r2low, tab)
+  subroutine dipole_ranges(sp, side, i_lo, i_hi, j_min, j_max, j_pad, x, y, mu, wsin, &
+       k_pair, r2_lo, r2_hi, shift4, with_r3, rstart, rlo, rhi, ax, ay, a3, rsum, r2low, tab)
     type(split_t), intent(in) :: sp
     integer, intent(in) :: side, i_lo, i_hi, j_min, j_max, j_pad
-    ! explicit shapes (bounded by j_pad or i_hi): GCC does not vectorise the loop over
-    ! assumed-size (*) arrays
     real(dp), intent(in) :: x(max(j_pad, i_hi)), y(max(j_pad, i_hi)), mu(max(j_pad, i_hi))
     real(dp), intent(in) :: wsin(max(j_pad, i_hi)), k_pair, r2_lo, r2_hi, shift4
     logical, intent(in) :: with_r3
     integer, intent(in) :: rstart(i_hi + 1), rlo(*), rhi(*)
     real(dp), intent(inout) :: ax(j_pad), ay(j_pad), a3(j_pad)
-    real(dp), intent(inout) :: rsum(3, i_lo:i_hi)   !< per row: the action on i (x, y, r^-3 sum)
+    real(dp), intent(inout) :: rsum(3, i_lo:i_hi)
     real(dp), intent(inout) :: r2low
-    type(pair_table_t), intent(in), optional :: tab   !< the dipole table (used when on)
-    integer :: i, r, j, j0, j_lo, j_hi, l, off, k
-    logical :: tabled
-    integer :: shift
-    integer(i8) :: tn, base, kl(lanes)
-    real(dp) :: lo2, hi2, dxl(lanes), dyl(lanes), dl(lanes)
-    !> on(l + off): 1 for the lanes of a block up to the range's end, 0 past it
-    real(dp), parameter :: on(2*lanes - 1) = [(merge(1.0_dp, 0.0_dp, k <= lanes), k = 1, 2*lanes - 1)]
-    real(dp) :: xi, yi, ci, wi, dx, dy, r2, c, r3, keep3, wa, wb, low
-    real(dp) :: gx(lanes), gy(lanes), g3(lanes)
-    keep3 = merge(1.0_dp, 0.0_dp, with_r3)
-    ! the weight wa + wb S(r) of lane_pair (worked out here: a test on side in the loop stops
-    ! it vectorising)
-    wa = 1; wb = 0
-    if (side == side_near) then
-      wa = 0; wb = 1
-    else if (side == side_far) then
-      wa = 1; wb = -1
-    end if
-    low = r2low
-    tabled = .false.
-    if (present(tab)) tabled = tab%on
-    if (tabled) then   ! the same loops with the table's kernel (lane_pair_tab)
-      tn = tab%n; shift = tab%shift; base = tab%base; lo2 = tab%lo2; hi2 = tab%hi2
-      do i = i_lo, i_hi
-        xi = x(i); yi = y(i)
-        ci = k_pair*mu(i)
-        wi = wsin(i)
-        gx = 0; gy = 0; g3 = 0
-        do r = rstart(i), rstart(i + 1) - 1
-          j_lo = max(rlo(r), j_min)
-          j_hi = min(rhi(r), j_max)
-          j0 = j_lo
-          do while (j0 <= j_hi .and. j0 + lanes - 1 <= j_pad)   ! whole blocks (vectorised)
-            off = lanes - min(lanes, j_hi - j0 + 1)               ! lanes past j_hi are off
-            do l = 1, lanes   ! segments first, then the pieces (see rows_pairs)
-              j = j0 + l - 1
-              dxl(l) = xi - x(j)
-              dyl(l) = yi - y(j)
-              call table_seg(dxl(l)*dxl(l) + dyl(l)*dyl(l), lo2, hi2, tn, shift, base, kl(l), &
-                   dl(l))
-            end do
-            do l = 1, lanes
-              j = j0 + l - 1
-              dx = dxl(l)
-              dy = dyl(l)
-              call lane_pair_tab(tab%c, tn, kl(l), dl(l), sp, wa, wb, on(l + off), r2_lo, r2_hi, &
-                   dx, dy, r2, c, r3)
-              low = min(low, r2)
-              c = ci*mu(j)*c
-              r3 = keep3*r3
-              gx(l) = gx(l) + c*dx
-              gy(l) = gy(l) + c*dy
-              g3(l) = g3(l) + wsin(j)*r3
-              ax(j) = ax(j) - c*dx
-              ay(j) = ay(j) - c*dy
-              a3(j) = a3(j) + wi*r3
-            end do
-            j0 = j0 + lanes
-          end do
-          ! the rest (< lanes), lane by lane: the same body as the blocks'; one loop with a
-          ! variable trip count for both measured 0.90x (the block loop then has an epilogue)
-          do j = j0, j_hi
-            l = j - j0 + 1
-            dx = xi - x(j)
-            dy = yi - y(j)
-            call table_seg(dx*dx + dy*dy, lo2, hi2, tn, shift, base, kl(1), dl(1))
-            call lane_pair_tab(tab%c, tn, kl(1), dl(1), sp, wa, wb, 1.0_dp, r2_lo, r2_hi, dx, dy, &
-                 r2, c, r3)
-            low = min(low, r2)
-            c = ci*mu(j)*c
-            r3 = keep3*r3
-            gx(l) = gx(l) + c*dx
-            gy(l) = gy(l) + c*dy
-            g3(l) = g3(l) + wsin(j)*r3
-            ax(j) = ax(j) - c*dx
-            ay(j) = ay(j) - c*dy
-            a3(j) = a3(j) + wi*r3
-          end do
-        end do
-        rsum(1, i) = rsum(1, i) + sum(gx)
-        rsum(2, i) = rsum(2, i) + sum(gy)
-        rsum(3, i) = rsum(3, i) + sum(g3)
-      end do
-    else
-      do i = i_lo, i_hi
-        xi = x(i); yi = y(i)
-        ci = k_pair*mu(i)
-        wi = wsin(i)
-        gx = 0; gy = 0; g3 = 0
-        do r = rstart(i), rstart(i + 1) - 1
-          j_lo = max(rlo(r), j_min)
-          j_hi = min(rhi(r), j_max)
-          j0 = j_lo
-          do while (j0 <= j_hi .and. j0 + lanes - 1 <= j_pad)   ! whole blocks (vectorised)
-            off = lanes - min(lanes, j_hi - j0 + 1)               ! lanes past j_hi are off
-            do l = 1, lanes
-              j = j0 + l - 1
-              dx = xi - x(j)
-              dy = yi - y(j)
-              call lane_pair(sp, wa, wb, on(l + off), r2_lo, r2_hi, shift4, dx, dy, r2, c, r3)
-              low = min(low, r2)
-              c = ci*mu(j)*c
-              r3 = keep3*r3
-              gx(l) = gx(l) + c*dx
-              gy(l) = gy(l) + c*dy
-              g3(l) = g3(l) + wsin(j)*r3
-              ax(j) = ax(j) - c*dx
-              ay(j) = ay(j) - c*dy
-              a3(j) = a3(j) + wi*r3
-            end do
-            j0 = j0 + lanes
-          end do
-          ! the rest (< lanes), lane by lane: the same body as the blocks'; one loop with a
-          ! variable trip count for both measured 0.90x (the block loop then has an epilogue)
-          do j = j0, j_hi
-            l = j - j0 + 1
-            dx = xi - x(j)
-            dy = yi - y(j)
-            call lane_pair(sp, wa, wb, 1.0_dp, r2_lo, r2_hi, shift4, dx, dy, r2, c, r3)
-            low = min(low, r2)
-            c = ci*mu(j)*c
-            r3 = keep3*r3
-            gx(l) = gx(l) + c*dx
-            gy(l) = gy(l) + c*dy
-            g3(l) = g3(l) + wsin(j)*r3
-            ax(j) = ax(j) - c*dx
-            ay(j) = ay(j) - c*dy
-            a3(j) = a3(j) + wi*r3
-          end do
-        end do
-        rsum(1, i) = rsum(1, i) + sum(gx)
-        rsum(2, i) = rsum(2, i) + sum(gy)
-        rsum(3, i) = rsum(3, i) + sum(g3)
-      end do
-    end if
-    r2low = low
+    type(pair_table_t), intent(in), optional :: tab   !< the dipole law's evaluation
+    integer :: code
+    code = eval_exact
+    if (present(tab)) code = tab%eval
+    select case (code)   ! one loop nest (dipole_ranges.inc), compiled once per evaluation
+    case (eval_table)
+      call ranges_table(sp, side, i_lo, i_hi, j_min, j_max, j_pad, x, y, mu, wsin, &
+           k_pair, r2_lo, r2_hi, shift4, with_r3, rstart, rlo, rhi, ax, ay, a3, rsum, r2low, tab)
+    case (eval_single)
+      call ranges_single(sp, side, i_lo, i_hi, j_min, j_max, j_pad, x, y, mu, wsin, &
+           k_pair, r2_lo, r2_hi, shift4, with_r3, rstart, rlo, rhi, ax, ay, a3, rsum, r2low, tab)
+    case (eval_rsqrt)
+      call ranges_rsqrt(sp, side, i_lo, i_hi, j_min, j_max, j_pad, x, y, mu, wsin, &
+           k_pair, r2_lo, r2_hi, shift4, with_r3, rstart, rlo, rhi, ax, ay, a3, rsum, r2low, tab)
+    case default
+      call ranges_exact(sp, side, i_lo, i_hi, j_min, j_max, j_pad, x, y, mu, wsin, &
+           k_pair, r2_lo, r2_hi, shift4, with_r3, rstart, rlo, rhi, ax, ay, a3, rsum, r2low, tab)
+    end select
   end subroutine dipole_ranges
+
+  ! dipole_ranges by evaluation: the loop nest of dipole_ranges.inc compiled with the constant law
+  subroutine ranges_exact(sp, side, i_lo, i_hi, j_min, j_max, j_pad, x, y, mu, wsin, &
+       k_pair, r2_lo, r2_hi, shift4, with_r3, rstart, rlo, rhi, ax, ay, a3, rsum, r2low, tab)
+    integer, parameter :: law = eval_exact
+    include 'dipole_ranges.inc'
+  end subroutine ranges_exact
+
+  subroutine ranges_table(sp, side, i_lo, i_hi, j_min, j_max, j_pad, x, y, mu, wsin, &
+       k_pair, r2_lo, r2_hi, shift4, with_r3, rstart, rlo, rhi, ax, ay, a3, rsum, r2low, tab)
+    integer, parameter :: law = eval_table
+    include 'dipole_ranges.inc'
+  end subroutine ranges_table
+
+  subroutine ranges_single(sp, side, i_lo, i_hi, j_min, j_max, j_pad, x, y, mu, wsin, &
+       k_pair, r2_lo, r2_hi, shift4, with_r3, rstart, rlo, rhi, ax, ay, a3, rsum, r2low, tab)
+    integer, parameter :: law = eval_single
+    include 'dipole_ranges.inc'
+  end subroutine ranges_single
+
+  subroutine ranges_rsqrt(sp, side, i_lo, i_hi, j_min, j_max, j_pad, x, y, mu, wsin, &
+       k_pair, r2_lo, r2_hi, shift4, with_r3, rstart, rlo, rhi, ax, ay, a3, rsum, r2low, tab)
+    integer, parameter :: law = eval_rsqrt
+    include 'dipole_ranges.inc'
+  end subroutine ranges_rsqrt
 
   !> Add the row sums of dipole_ranges to the rows' own forces.
   subroutine add_row_sums(i_lo, i_hi, with_r3, rsum, fx, fy, s3)
@@ -854,43 +927,18 @@ contains
     end do
   end subroutine add_row_sums
 
-  !> One lane of dipole_ranges: r2 = dx^2 + dy^2 (huge(1.0) in a lane that is off, so that
-  !> it leaves the running minimum alone) and the masked and weighted kernel: force factor c
-  !> (times k mu_i mu_j) and r^-3 r3, both exactly 0 in a lane that is off or out of the mask.
-  !> The weight is wa + wb S(r): 1 (wa = 1, wb = 0), S (0, 1) or 1 - S (1, -1).
-  pure elemental subroutine lane_pair(sp, wa, wb, lane, r2_lo, r2_hi, shift4, dx, dy, r2, c, r3)
+  !> One lane of dipole_ranges at squared distance d2 = dx^2 + dy^2: r2 = d2 (huge(1.0) in a
+  !> lane that is off, so that it leaves the running minimum alone) and the lane's weight
+  !> keep (the kernel's factor): exactly 0 in a lane that is off or out of the mask r2_lo <=
+  !> d2 < r2_hi, else wa + wb S(r): 1 (wa = 1, wb = 0), S (0, 1) or 1 - S (1, -1).
+  pure elemental subroutine lane_weight(sp, wa, wb, lane, r2_lo, r2_hi, d2, r2, keep)
     type(split_t), intent(in) :: sp
-    real(dp), intent(in) :: wa, wb, lane, r2_lo, r2_hi, shift4, dx, dy
-    real(dp), intent(out) :: r2, c, r3
-    real(dp) :: keep, s5, d2
-    d2 = dx*dx + dy*dy
+    real(dp), intent(in) :: wa, wb, lane, r2_lo, r2_hi, d2
+    real(dp), intent(out) :: r2, keep
     keep = merge(1.0_dp, 0.0_dp, d2 >= r2_lo)*merge(1.0_dp, 0.0_dp, d2 < r2_hi)*lane
     keep = keep*(wa + wb*near_weight(sp, d2))
     r2 = d2 + (1.0_dp - lane)*huge(1.0_dp)
-    ! a lane that is off may hold any particle, even one at distance 0: keep the kernel finite
-    call dipole_kernel(max(d2, tiny(1.0_dp)), shift4, s5, r3)
-    c = keep*s5
-    r3 = keep*r3
-  end subroutine lane_pair
-
-  !> lane_pair with the dipole table (c(8, n), module pair_table) instead of dipole_kernel:
-  !> segment k and offset d of r^2 = dx^2 + dy^2 from table_seg.
-  pure subroutine lane_pair_tab(tc, tn, k, d, sp, wa, wb, lane, r2_lo, r2_hi, dx, dy, r2, c, r3)
-    integer(i8), intent(in) :: tn, k
-    real(dp), intent(in) :: tc(8, tn), d
-    type(split_t), intent(in) :: sp
-    real(dp), intent(in) :: wa, wb, lane, r2_lo, r2_hi, dx, dy
-    real(dp), intent(out) :: r2, c, r3
-    real(dp) :: keep, s5, d2
-    d2 = dx*dx + dy*dy
-    keep = merge(1.0_dp, 0.0_dp, d2 >= r2_lo)*merge(1.0_dp, 0.0_dp, d2 < r2_hi)*lane
-    keep = keep*(wa + wb*near_weight(sp, d2))
-    r2 = d2 + (1.0_dp - lane)*huge(1.0_dp)
-    s5 = tc(1, k) + d*(tc(2, k) + d*(tc(3, k) + d*tc(4, k)))
-    r3 = tc(5, k) + d*(tc(6, k) + d*(tc(7, k) + d*tc(8, k)))
-    c = keep*s5
-    r3 = keep*r3
-  end subroutine lane_pair_tab
+  end subroutine lane_weight
 
   !> Rows i_lo..i_hi of a half list taken as one flat sequence of pairs (own(k) = the row i of
   !> pair k): chunks of 256 pairs whatever the row lengths (a row holds ~5 pairs at the
@@ -910,19 +958,14 @@ contains
     real(dp), intent(inout) :: fx(n), fy(n), s3(n), sx(*), sy(*), ss(*)
     real(dp), intent(inout) :: r2low
     integer, parameter :: chunk = pair_chunk
-    integer :: i, j, m, k, k0, nk, k_hi
-    real(dp) :: low, rk2, s5, r3p, keep, keep3
+    integer :: i, j, m, k, k0, nk, k_hi, code
+    real(dp) :: low, rk2, keep3, e5, e3, keep
     real(dp) :: r2s(chunk), pw(chunk, 4)   ! per pair: x_i - x_j, y_i - y_j, force factor, r^-3
-    type(pair_table_t), intent(in), optional :: tab   !< the law's table (used when on)
-    logical :: tabled
-    integer :: shift
-    integer(i8) :: tn, base, kt, ks(chunk)
-    real(dp) :: lo2, hi2, d, ds(chunk)
-    tabled = .false.
-    if (present(tab)) tabled = tab%on
-    if (tabled) then
-      tn = tab%n; shift = tab%shift; base = tab%base; lo2 = tab%lo2; hi2 = tab%hi2
-    end if
+    type(pair_table_t), intent(in), optional :: tab   !< the law's evaluation
+    integer(i8) :: ks(pair_chunk), tn
+    real(dp) :: ds(pair_chunk)
+    code = eval_exact
+    if (present(tab)) code = tab%eval
     low = r2low
     keep3 = merge(1.0_dp, 0.0_dp, with_r3)
     rk2 = huge(1.0_dp)
@@ -938,29 +981,14 @@ contains
         pw(m, 2) = y(i) - y(j)
         r2s(m) = pw(m, 1)*pw(m, 1) + pw(m, 2)*pw(m, 2)
         low = min(low, r2s(m))
+        pw(m, 3) = 1
       end do
-      if (kernel == kernel_dipole .and. tabled) then
-        ! segments first, then the pieces: in one loop GCC 12 vectorises neither
-        do m = 1, nk
-          call table_seg(r2s(m), lo2, hi2, tn, shift, base, ks(m), ds(m))
-        end do
-        do m = 1, nk
-          kt = ks(m)
-          d = ds(m)
-          keep = merge(1.0_dp, 0.0_dp, r2s(m) < rk2)*near_weight(sp, r2s(m))   ! as in rows_list
-          s5 = tab%c(1, kt) + d*(tab%c(2, kt) + d*(tab%c(3, kt) + d*tab%c(4, kt)))
-          r3p = tab%c(5, kt) + d*(tab%c(6, kt) + d*(tab%c(7, kt) + d*tab%c(8, kt)))
-          pw(m, 3) = keep*s5
-          pw(m, 4) = keep*keep3*r3p
-        end do
-      else if (kernel == kernel_dipole) then
-        do m = 1, nk
-          keep = merge(1.0_dp, 0.0_dp, r2s(m) < rk2)
-          if (sp%on) keep = near_weight(sp, r2s(m))   ! loop-invariant test (unswitched)
-          call dipole_kernel(r2s(m), shift4, s5, r3p)
-          pw(m, 3) = keep*s5        ! times k mu_i mu_j in chunk_sums (no gathers of mu, wsin here)
-          pw(m, 4) = keep*keep3*r3p   ! 0 without the friction sums (s3 then gets + 0)
-        end do
+      if (kernel == kernel_dipole) then
+        ! force factor times k mu_i mu_j in chunk_sums (no gathers of mu, wsin here); r^-3
+        ! times 0 without the friction sums (s3 then gets + 0)
+        associate (c => pw(:, 3), r3 => pw(:, 4), ci => 1.0_dp, w3 => keep3)
+          include 'dipole_eval.inc'
+        end associate
       else
         call lj_chunk(l, nk, r2s, pw(:, 3), tab)
       end if

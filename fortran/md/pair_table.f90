@@ -14,17 +14,28 @@
 !> law and the choice of `bits` live in pair_forces, next to the exact kernels and the pair
 !> loops (so that the loops inline them and the measured routine is the one they use). u is
 !> clamped into [lo2, hi2] (and the index into the table) so no value of u reads outside it.
+!>
+!> The same type describes every pair evaluation of a run (pair_eval_t, `eval`): exact (the
+!> reference, the default), table, single (the law's arithmetic in single precision from the
+!> double r^2, the sums in double) or rsqrt (r^-1 from a bit-level guess refined by three
+!> Newton steps: multiplies and adds only). Each cheaper evaluation's error is measured at load
+!> over the run's range of r against the exact law (max_err, rms_err) and printed in run.json.
 module pair_table
   use kinds, only: dp, i8
   implicit none
   private
 
   public :: pair_table_t, law_i, table_pieces, segment_bounds, max_bits, table_json
+  public :: eval_exact, eval_table, eval_single, eval_rsqrt, eval_names, eval_code
 
   integer, parameter :: max_bits = 12   !< finest table: 4096 segments per octave of r^2
+  !> pair evaluations (&integration / &steric pair_eval), in the order of eval_names
+  integer, parameter :: eval_exact = 1, eval_table = 2, eval_single = 3, eval_rsqrt = 4
+  character(len=*), parameter :: eval_names = 'exact|table|single|rsqrt'
 
   type :: pair_table_t
-    logical :: on = .false.
+    integer :: eval = eval_exact !< the evaluation (eval_*); the fields below: not exact
+    logical :: on = .false.      !< a table (eval = eval_table)
     integer :: bits = 0          !< 2^bits segments per octave of u = r^2
     integer :: shift = 52        !< 52 - bits
     integer(i8) :: base = 0      !< segment k: the bits of u shifted right by shift = base + k
@@ -70,6 +81,7 @@ contains
     real(dp) :: u0, u1, h, s
     real(dp) :: v0(nq), d0(nq), v1(nq), d1(nq), mg(nq)
     t%on = .true.
+    t%eval = eval_table
     t%bits = bits
     t%shift = 52 - bits
     t%nq = nq
@@ -93,24 +105,44 @@ contains
     end do
   end subroutine table_pieces
 
+  !> The code (eval_*) of a pair_eval name (one of eval_names; 0 for another).
+  pure integer function eval_code(name) result(code)
+    character(len=*), intent(in) :: name
+    select case (trim(name))
+    case ('exact'); code = eval_exact
+    case ('table'); code = eval_table
+    case ('single'); code = eval_single
+    case ('rsqrt'); code = eval_rsqrt
+    case default; code = 0
+    end select
+  end function eval_code
+
   !> run.json members of the pair evaluation (each line '  "key": value,' and a newline):
   !> pair_eval, its largest and typical (rms) relative force error measured at load (0 for
-  !> exact: the reference), and for a table its requested error, size and range of r.
+  !> exact: the reference), for a table its requested error, size and range of r, for single
+  !> and rsqrt the requested error and the range of r the error was measured over.
   function table_json(t) result(text)
     type(pair_table_t), intent(in) :: t
     character(len=:), allocatable :: text
     character(len=1), parameter :: nl = achar(10)
-    if (.not. t%on) then
+    character(len=*), parameter :: names(4) = [character(len=6) :: 'exact', 'table', 'single', &
+         'rsqrt']
+    if (t%eval == eval_exact) then
       text = '  "pair_eval": "exact",'//nl//'  "pair_max_rel_error": 0,'//nl// &
            '  "pair_typical_rel_error": 0,'//nl
       return
     end if
-    text = '  "pair_eval": "table",'//nl// &
+    text = '  "pair_eval": "'//trim(names(t%eval))//'",'//nl// &
          '  "pair_max_rel_error": '//r(t%max_err)//','//nl// &
-         '  "pair_typical_rel_error": '//r(t%rms_err)//','//nl// &
-         '  "pair_table": {"requested_rel_error": '//r(t%requested)// &
-         ', "segments_per_octave": '//i(2**t%bits)//', "segments": '//i(t%n)// &
-         ', "r_range": ['//r(sqrt(t%lo2))//', '//r(sqrt(t%hi2))//']},'//nl
+         '  "pair_typical_rel_error": '//r(t%rms_err)//','//nl
+    if (t%eval == eval_table) then
+      text = text//'  "pair_table": {"requested_rel_error": '//r(t%requested)// &
+           ', "segments_per_octave": '//i(2**t%bits)//', "segments": '//i(t%n)// &
+           ', "r_range": ['//r(sqrt(t%lo2))//', '//r(sqrt(t%hi2))//']},'//nl
+    else
+      text = text//'  "pair_error_measured": {"requested_rel_error": '//r(t%requested)// &
+           ', "r_range": ['//r(sqrt(t%lo2))//', '//r(sqrt(t%hi2))//']},'//nl
+    end if
   contains
     function r(v) result(s)
       real(dp), intent(in) :: v
