@@ -12,8 +12,9 @@ module api
   use runner, only: sim_execute, sim_resume, sim_check, sim_resolve, sim_describe, write_text
   use signals, only: install_handlers, restore_handlers
   use protocol, only: piston_at
-  use pair_forces, only: dipole_kernel, dipole_eval_build, dipole_eval, lj_eval_build, lj_chunk, &
-       lj_law, lj_law_t, lj_kernel, pair_table_t, split_t
+  use pair_forces, only: dipole_kernel, dipole_eval, lj_chunk, lj_law, lj_law_t, lj_kernel, &
+       pair_table_t, split_t
+  use pair_eval, only: dipole_eval_build, lj_eval_build
   use neighbours, only: nlist_due
   use integrators, only: estimate_velocity, finish_velocity
   implicit none

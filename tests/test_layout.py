@@ -140,7 +140,6 @@ def test_no_pyorch_file_is_longer_than_a_room_without_its_reason():
 
 #: Fortran files longer than a room without the reason yet (to remove, not to extend)
 FORTRAN_OVERSIZE: dict[str, str] = {
-    "fortran/md/pair_forces.f90": "reworked on the single-precision branch (issue 27)",
 }
 
 

@@ -14,7 +14,8 @@ module engine
   use initial, only: place_particles
   use start_file, only: start_t
   use pair_forces, only: pair_forces_all, pair_forces_list, pair_forces_far, pair_energy_all, &
-       dipole_eval_build, max_bits
+       max_bits
+  use pair_eval, only: dipole_eval_build
   use pair_table, only: eval_code, eval_exact, eval_table
   use scene_input, only: real_str, int_str
   use parallel, only: init_threads, par_min_loop, my_share

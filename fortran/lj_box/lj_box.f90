@@ -26,7 +26,8 @@ module lj_box
   use neighbours, only: nlist_t, nlist_setup, nlist_refresh, nlist_owners, nb_all_pairs, &
        nb_cells, nb_verlet
   use pair_forces, only: lj_law_t, lj_law, pair_forces_all, pair_forces_list, lj_energy, &
-       lj_eval_build, pair_table_t, max_bits
+       pair_table_t, max_bits
+  use pair_eval, only: lj_eval_build
   use pair_table, only: table_json, eval_names, eval_code, eval_exact, eval_table
   use fields, only: field_t, field_add, field_potential, field_has_potential, &
        field_read_table, field_shapes, field_modulations, field_static
