@@ -43,9 +43,12 @@ def test_bed_grid_has_every_cheaper_pair_evaluation_of_the_schema(monkeypatch):
     assert {"verlet_rc7.13_skin1_dt0.002_SV_table", "verlet_rc3_skin1_tail_dt0.002_SV_table",
             "all_pairs_dt0.002_SV_table"} <= set(labels)
     assert bench.Setting.of().label() == "verlet_rc7.13_skin1_dt0.002_SV"   # exact: unchanged
-    _with_extra_choice(monkeypatch, "magnet_bed", "integration", "pair_eval", "single")
+    schema = set(key_specs("magnet_bed")["integration"]["pair_eval"]["choices"])
+    assert {"exact", "table", "single", "rsqrt"} <= schema
+    assert {s.d["pair_eval"] for s in bench.default_grid()} == schema
+    _with_extra_choice(monkeypatch, "magnet_bed", "integration", "pair_eval", "next_eval")
     evs = {s.d["pair_eval"] for s in bench.default_grid()}
-    assert evs == {"exact", "table", "single"}
+    assert evs == schema | {"next_eval"}
 
 
 def test_lj_grid_follows_the_schema(monkeypatch):

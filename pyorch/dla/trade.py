@@ -8,7 +8,8 @@ the engine (side >= the largest diameter): no scene key, so not a knob here.
 
 Scene: 300 sticky disks of radius 0.5 L in a 40 x 40 L box (packing 0.147), 100 tau.
 Limit: the densest random packing that places (``&disks count`` in that box, refused at
-check: random sequential addition, or above the static 0.9). dla has no memory estimate.
+check: random sequential addition, or above the static 0.9), and the largest ``&disks count``
+the engine's memory estimate admits here (:func:`pyorch.trade.memory_limit`).
 """
 from __future__ import annotations
 
@@ -58,4 +59,5 @@ def limits() -> list[Limit]:
 STUDIES = (Study(
     name="dla", kind="dla", scene=scene, knobs=(CALENDAR,), baseline=BASELINE, grid=grid,
     measure=measure, reference=BASELINE, identical=EVENTS, limits=limits, seeds=2,
+    memory=("disks.count", 5 * 10**6),
     summary="300 sticky disks, 100 tau: calendars, speed only (events identical)"),)

@@ -17,7 +17,7 @@ Errors against velocity Verlet at dt = 1e-3/64 T, same seed, at t = 1 T:
 Limits: the largest dt per integrator for which the run completes and keeps max |E(t) -
 E(0)| below 10 % of |E(0)| over 1 T (as in RESULTS 20.1), the densest random packing that
 places (``&particles n`` at min_distance 2 a in the scene's box, refused at check), and the
-schema's ``&particles n`` range (lj_box has no memory estimate).
+largest ``&particles n`` the engine's memory estimate admits here (:func:`pyorch.trade.memory_limit`).
 """
 from __future__ import annotations
 
@@ -156,4 +156,5 @@ STUDIES = (Study(
     name="lj_box", kind="lj_box", scene=scene, knobs=KNOBS, baseline=BASELINE, grid=grid,
     measure=measure, errors=errors, reference=REFERENCE, adapt=adapt, retime=keep_time,
     target_key="integration.target_rel_error", limits=limits, seeds=3,
+    memory=("particles.n", 5 * 10**6),
     summary="1600-particle LJ crystal, 1 T; errors vs velocity Verlet at dt 1e-3/64"),)
