@@ -312,3 +312,13 @@ def test_the_shared_entry_point_asks_the_beds_own_study():
     own, own_text = bench.apply_target(scene)
     assert text is not None and text == own_text
     assert shared.namelist() == own.namelist()
+
+
+def test_the_run_time_estimate_uses_the_cost_the_choice_compares():
+    """The bed's estimate scales the row's CPU time per step (what the choice ranks by), not
+    its wall time, which a loaded machine inflated 1.5-3x when the table was measured; a table
+    without CPU times falls back to wall time."""
+    row = pd.Series(dict(neighbour="verlet", time_per_step_s=3e-5, cpu_per_step_s=1e-5))
+    assert bench.run_time_estimate(row, 736, 1000) == pytest.approx(1e-5 * 2 * 1000)
+    row_all = pd.Series(dict(neighbour="all_pairs", time_per_step_s=3e-5, cpu_per_step_s=float("nan")))
+    assert bench.run_time_estimate(row_all, 736, 1000) == pytest.approx(3e-5 * 4 * 1000)

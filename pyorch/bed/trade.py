@@ -509,12 +509,16 @@ def apply_target(scene: Scene, table_path: Path | None = None,
 
 
 def run_time_estimate(row: pd.Series, n_particles: int, n_steps: int) -> float:
-    """Wall time [s] of ``n_steps`` steps of ``n_particles`` at a table row's setting: its time
-    per step on the trade scene (TRADE_N particles, one core, the machine that measured the
-    table) scaled by (N/TRADE_N)^2 for all pairs and N/TRADE_N for cells and lists."""
+    """Run time [s] of ``n_steps`` steps of ``n_particles`` at a table row's setting: its CPU
+    time per step on the trade scene (TRADE_N particles, one core, the machine that measured
+    the table; the cost the choice compares; wall time for a table without CPU times), scaled
+    by (N/TRADE_N)^2 for all pairs and N/TRADE_N for cells and lists (an idle core's wall time)."""
     ratio = n_particles / TRADE_N
     scale = ratio**2 if row["neighbour"] == "all_pairs" else ratio
-    return float(row["time_per_step_s"]) * scale * n_steps
+    per_step = row.get("cpu_per_step_s", float("nan"))
+    if per_step is None or not np.isfinite(per_step):   # a table measured before CPU times
+        per_step = row["time_per_step_s"]
+    return float(per_step) * scale * n_steps
 
 
 def check_lines(scene: Scene, info: dict[str, Any]) -> list[str]:
@@ -524,9 +528,9 @@ def check_lines(scene: Scene, info: dict[str, Any]) -> list[str]:
     if choice is None:
         return []
     est = run_time_estimate(choice.row, int(info.get("n_particles", 0)), int(info["n_steps"]))
-    return [f"estimated run time: {_duration(est)} at {choice.row['label']} (its time per step "
-            f"on the trade scene, scaled to {info.get('n_particles')} particles: one core of the "
-            f"machine that measured the table)"]
+    return [f"estimated run time: {_duration(est)} at {choice.row['label']} (its CPU time per "
+            f"step on the trade scene, scaled to {info.get('n_particles')} particles: one idle "
+            f"core of the machine that measured the table)"]
 
 
 def _duration(seconds: float) -> str:
