@@ -770,7 +770,7 @@ contains
     s%p(i)%kind = k
     s%p(i)%partner = p
     s%p(i)%count = 0
-    if (k == ev_pair) s%p(i)%count = s%d(p)%coll
+    if (k == ev_pair) s%p(i)%count = s%p(i)%pcount    ! p = pj: its counter at the scan
     call cal_set(s, i, t)
   end subroutine set_event
 
