@@ -38,7 +38,8 @@ module edmd_buckets
     real(dp) :: pt = never                    !< candidate's collision time
     integer(i8) :: count = 0                  !< partner's collision counter at the prediction
     integer(i8) :: pcount = 0                 !< candidate's collision counter at its scan
-    integer(i8) :: pad = 0                    !< to 64 bytes
+    real(dp) :: m = 0                         !< the particle's mass [M] (edmd_core's copy: a pair
+                                              !< or wall hit reads it from the lines it holds)
   end type bq_entry_t
 
   type :: bq_t

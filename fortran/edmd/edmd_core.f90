@@ -474,6 +474,7 @@ contains
     s%n_same = 0
     s%max_same = max(1000000_i8, 1000_i8*s%n)
     s%p = bq_entry_t()                      ! no entries, no predictions
+    s%p(:)%m = s%m                          ! masses beside the entries (s. 32.1)
     select case (s%calendar)
     case (cal_heap); call heap_init(s%heap, s%n)
     case (cal_buckets)
@@ -900,11 +901,11 @@ contains
       select case (w)                        ! exactly at contact with the wall
       case (1, 2)
         a%x = merge(a%r, s%lx - a%r, w == 1)
-        s%wall_impulse = s%wall_impulse + 2.0_dp*s%m(i)*abs(a%vx)/reached_perimeter(s, a%r)
+        s%wall_impulse = s%wall_impulse + 2.0_dp*s%p(i)%m*abs(a%vx)/reached_perimeter(s, a%r)
         a%vx = -a%vx
       case (3, 4)
         a%y = merge(a%r, s%ly - a%r, w == 3)
-        s%wall_impulse = s%wall_impulse + 2.0_dp*s%m(i)*abs(a%vy)/reached_perimeter(s, a%r)
+        s%wall_impulse = s%wall_impulse + 2.0_dp*s%p(i)%m*abs(a%vy)/reached_perimeter(s, a%r)
         a%vy = -a%vy
       end select
       a%coll = a%coll + 1
@@ -959,13 +960,13 @@ contains
       if (s%calendar /= cal_rescan) call predict(s, i)
       return
     end if
-    mu = s%m(i)*s%m(j)/(s%m(i) + s%m(j))
+    mu = s%p(i)%m*s%p(j)%m/(s%p(i)%m + s%p(j)%m)
     jx = 2.0_dp*mu*vn*nx                                            ! impulse on j (= -dp_i)
     jy = 2.0_dp*mu*vn*ny
-    s%d(i)%vx = s%d(i)%vx - jx/s%m(i)
-    s%d(i)%vy = s%d(i)%vy - jy/s%m(i)
-    s%d(j)%vx = s%d(j)%vx + jx/s%m(j)
-    s%d(j)%vy = s%d(j)%vy + jy/s%m(j)
+    s%d(i)%vx = s%d(i)%vx - jx/s%p(i)%m
+    s%d(i)%vy = s%d(i)%vy - jy/s%p(i)%m
+    s%d(j)%vx = s%d(j)%vx + jx/s%p(j)%m
+    s%d(j)%vy = s%d(j)%vy + jy/s%p(j)%m
     s%virial = s%virial - 2.0_dp*mu*vn*d                            ! r_ij . dp_i > 0
     s%d(i)%coll = s%d(i)%coll + 1
     s%d(j)%coll = s%d(j)%coll + 1
