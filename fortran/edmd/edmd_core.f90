@@ -11,9 +11,9 @@
 !> prediction is a pure function of the stored states (the calendar rebuilt
 !> from them after a restore predicts bit-identical times). Memory layout: one
 !> 64-byte record per disk (disk_t: position, velocity, tl, radius, collision
-!> counter, cell link) and one per disk's calendar entry and prediction
-!> (edmd_buckets' bq_entry_t), so that a neighbour, a pop or an update costs
-!> one cache line, not one per array (bench/RESULTS.md s. 18).
+!> counter, cell link) and one per disk's calendar entry, prediction and mass
+!> (edmd_buckets' bq_entry_t), so that a neighbour, a pop, an update or a hit
+!> costs one cache line, not one per array (bench/RESULTS.md s. 18, 32.1).
 !>
 !> Events: disk-disk collision (time from |dr + dv t| = r_i + r_j in the
 !> stable form dt = c / (-b + sqrt(b^2 - a c)), b = dr.dv < 0, c = |dr|^2 -
