@@ -820,7 +820,7 @@ contains
       if (s%calendar /= cal_rescan) then
         i = cal_top(s)
         if (i == 0) exit
-        if (s%calendar == cal_buckets) call prefetch_next(s)
+        if (s%bq%hints) call prefetch_next(s)       ! hints: buckets from prefetch_min_n on
         te = s%p(i)%key
         if (te >= t_target) exit
         k = s%p(i)%kind
@@ -913,7 +913,7 @@ contains
     end associate
     s%n_wall = s%n_wall + 1
     s%n_events = s%n_events + 1
-    call log_event(s, ev_wall, i, -w)
+    if (s%logging) call log_event(s, ev_wall, i, -w)
     if (s%calendar /= cal_rescan) call predict(s, i)
   end subroutine wall_hit
 
@@ -972,7 +972,7 @@ contains
     s%d(i)%coll = s%d(i)%coll + 1
     s%d(j)%coll = s%d(j)%coll + 1
     s%n_pair = s%n_pair + 1
-    call log_event(s, ev_pair, min(i, j), max(i, j))
+    if (s%logging) call log_event(s, ev_pair, min(i, j), max(i, j))
     if (s%calendar /= cal_rescan) then
       call predict(s, i)
       call predict(s, j)
