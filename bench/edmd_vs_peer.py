@@ -154,10 +154,15 @@ def instruction_rows(args: argparse.Namespace, tmp: Path, r_ours: float,
             t = f * coll / r_ours
             scene = patched(GAS, gas_overrides(n, args.eta, t, args.calendar),
                             tmp / f"cg_{n}_{f}.nml")
-            ins, _ = callgrind([args.ours, str(scene), "--out", str(tmp / f"cg_{n}_{f}"),
-                                "--quiet", "--overwrite"])
-            meta = json.loads((tmp / f"cg_{n}_{f}" / "run.json").read_text())
-            counts.setdefault(("ours", args.calendar), []).append((ins, int(meta["events_pair"])))
+            ours = [("ours", args.ours)]
+            if args.ours_base is not None:
+                ours.append(("ours-base", args.ours_base))
+            for engine, exe_ours in ours:
+                ins, _ = callgrind([exe_ours, str(scene), "--out", str(tmp / f"cg_{n}_{f}"),
+                                    "--quiet", "--overwrite"])
+                meta = json.loads((tmp / f"cg_{n}_{f}" / "run.json").read_text())
+                counts.setdefault((engine, args.calendar), []).append(
+                    (ins, int(meta["events_pair"])))
             for v in args.variants:
                 exe = build_peer(v, n, args.eta, f * coll / r_peer, tmp / f"cg_{v}_{n}_{f}",
                                  "-O3")
@@ -182,7 +187,8 @@ def main() -> None:
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--ours", default=str(common.REPO / ".venv" / "bin" / "partsim"))
     ap.add_argument("--ours-base", default=None,
-                    help="also this executable of ours (e.g. the main branch's partsim)")
+                    help="also this executable of ours (e.g. the main branch's partsim; "
+                    "with --instructions a generic build too)")
     ap.add_argument("--calendar", default="buckets")
     ap.add_argument("--sizes", type=float, nargs="+", default=[1e3, 1e4, 1e5, 1e6],
                     help="target N (rounded to 4 k^3)")

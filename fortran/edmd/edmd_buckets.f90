@@ -27,7 +27,8 @@ module edmd_buckets
 
   !> One particle's entry, 64 bytes: the queue's fields and a payload the queue does not read
   !> (the engine's prediction of that particle), so that a pop or an update and the prediction
-  !> share one cache line. The caller holds the array (one entry per particle) and passes it.
+  !> share one cache line. The caller holds the array (one entry per particle) and passes it
+  !> whole (assumed size: contiguous, no stride arithmetic in the accesses; s. 32.1).
   type :: bq_entry_t
     real(dp) :: key = never                   !< event time
     integer :: next = 0, prev = 0             !< bucket list links (0: none)
@@ -38,7 +39,8 @@ module edmd_buckets
     real(dp) :: pt = never                    !< candidate's collision time
     integer(i8) :: count = 0                  !< partner's collision counter at the prediction
     integer(i8) :: pcount = 0                 !< candidate's collision counter at its scan
-    integer(i8) :: pad = 0                    !< to 64 bytes
+    real(dp) :: m = 0                         !< the particle's mass [M] (edmd_core's copy: a pair
+                                              !< or wall hit reads it from the lines it holds)
   end type bq_entry_t
 
   type :: bq_t
@@ -85,7 +87,7 @@ contains
 
   subroutine link(q, e, i, k)
     type(bq_t), intent(inout) :: q
-    type(bq_entry_t), intent(inout) :: e(:)
+    type(bq_entry_t), intent(inout) :: e(*)
     integer, intent(in) :: i, k
     integer :: h
     h = q%head(k)
@@ -98,7 +100,7 @@ contains
 
   subroutine unlink(q, e, i)
     type(bq_t), intent(inout) :: q
-    type(bq_entry_t), intent(inout) :: e(:)
+    type(bq_entry_t), intent(inout) :: e(*)
     integer, intent(in) :: i
     integer :: p, nx
     p = e(i)%prev
@@ -115,7 +117,7 @@ contains
   !> Insert particle i with key t, or move it to key t.
   subroutine bq_set(q, e, i, t)
     type(bq_t), intent(inout) :: q
-    type(bq_entry_t), intent(inout) :: e(:)
+    type(bq_entry_t), intent(inout) :: e(*)
     integer, intent(in) :: i
     real(dp), intent(in) :: t
     integer :: k
@@ -135,7 +137,7 @@ contains
 
   subroutine bq_remove(q, e, i)
     type(bq_t), intent(inout) :: q
-    type(bq_entry_t), intent(inout) :: e(:)
+    type(bq_entry_t), intent(inout) :: e(*)
     integer, intent(in) :: i
     if (e(i)%bucket < 0) return
     call unlink(q, e, i)
@@ -146,7 +148,7 @@ contains
   !> Smallest (key, id) of list k (0 if empty).
   pure integer function list_min(q, e, k) result(best)
     type(bq_t), intent(in) :: q
-    type(bq_entry_t), intent(in) :: e(:)
+    type(bq_entry_t), intent(in) :: e(*)
     integer, intent(in) :: k
     integer :: i
     real(dp) :: kb
@@ -168,7 +170,7 @@ contains
   !> prefetching (a later insertion may come first), never used for the order.
   pure integer function next_hint(q, e, top) result(h)
     type(bq_t), intent(in) :: q
-    type(bq_entry_t), intent(in) :: e(:)
+    type(bq_entry_t), intent(in) :: e(*)
     integer, intent(in) :: top
     integer :: i, k
     h = 0
@@ -192,7 +194,7 @@ contains
   !> Particle with the earliest event (0 if the queue is empty).
   integer function bq_top(q, e) result(top)
     type(bq_t), intent(inout) :: q
-    type(bq_entry_t), intent(inout) :: e(:)
+    type(bq_entry_t), intent(inout) :: e(*)
     top = 0
     q%hint = 0
     if (q%n == 0) return
@@ -216,7 +218,7 @@ contains
   !> overflow into it. .false. (nothing moved) if no entry has a finite time.
   logical function new_epoch(q, e) result(moved)
     type(bq_t), intent(inout) :: q
-    type(bq_entry_t), intent(inout) :: e(:)
+    type(bq_entry_t), intent(inout) :: e(*)
     integer :: i, nx, nf
     real(dp) :: tmin, lead, w
     tmin = never

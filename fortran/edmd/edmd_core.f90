@@ -11,9 +11,9 @@
 !> prediction is a pure function of the stored states (the calendar rebuilt
 !> from them after a restore predicts bit-identical times). Memory layout: one
 !> 64-byte record per disk (disk_t: position, velocity, tl, radius, collision
-!> counter, cell link) and one per disk's calendar entry and prediction
-!> (edmd_buckets' bq_entry_t), so that a neighbour, a pop or an update costs
-!> one cache line, not one per array (bench/RESULTS.md s. 18).
+!> counter, cell link) and one per disk's calendar entry, prediction and mass
+!> (edmd_buckets' bq_entry_t), so that a neighbour, a pop, an update or a hit
+!> costs one cache line, not one per array (bench/RESULTS.md s. 18, 32.1).
 !>
 !> Events: disk-disk collision (time from |dr + dv t| = r_i + r_j in the
 !> stable form dt = c / (-b + sqrt(b^2 - a c)), b = dr.dv < 0, c = |dr|^2 -
@@ -474,6 +474,7 @@ contains
     s%n_same = 0
     s%max_same = max(1000000_i8, 1000_i8*s%n)
     s%p = bq_entry_t()                      ! no entries, no predictions
+    s%p(:)%m = s%m                          ! masses beside the entries (s. 32.1)
     select case (s%calendar)
     case (cal_heap); call heap_init(s%heap, s%n)
     case (cal_buckets)
@@ -710,21 +711,19 @@ contains
     call choose(s, i)
   end subroutine predict
 
-  !> After disk i crossed into a new cell in direction d: its best pair candidate still holds
-  !> if the partner has not changed since (the old 3 x 3 cells were scanned with the same
-  !> trajectories), so only the row or column of cells that became adjacent is scanned.
-  !> Otherwise a full prediction. The same events result
-  !> (tests: heap = rescan), at a third of the cell scans per crossing.
+  !> After disk i crossed into a new cell in direction d: its best pair candidate is kept
+  !> (the old 3 x 3 cells were scanned with the same trajectories of i), so only the row or
+  !> column of cells that became adjacent is scanned. A candidate whose partner changed since
+  !> is kept too, without looking at the partner's record: its entry carries the partner's
+  !> counter of the scan (set_event), so it pops as stale at its time at the latest and i is
+  !> predicted in full then; until then the candidate time only falls, so i is re-predicted
+  !> before any later candidate dropped here (a collision with a disk that changed is held
+  !> by that disk's own prediction, as for every candidate). The same events result (tests:
+  !> heap = rescan; bench/RESULTS.md s. 32.1), at a third of the cell scans per crossing.
   subroutine predict_after_cross(s, i, d)
     type(ed_t), intent(inout) :: s
     integer, intent(in) :: i, d
     integer :: c
-    if (s%p(i)%pj /= 0) then
-      if (s%d(s%p(i)%pj)%coll /= s%p(i)%pcount) then
-        call predict(s, i)
-        return
-      end if
-    end if
     c = s%d(i)%cell
     select case (d)
     case (1); call scan_cells(s, i, c - s%sx - 1, s%sx, 1)      ! the column on the left
@@ -763,6 +762,9 @@ contains
     call set_event(s, i, tb, kb, pb)
   end subroutine choose
 
+  !> Entry of disk i: event k at time t with partner p. A pair event names the candidate
+  !> (p = pj) and carries its counter of the scan (pcount), not the partner's current one: a
+  !> candidate whose partner changed since (kept across crossings) is then stale at its pop.
   subroutine set_event(s, i, t, k, p)
     type(ed_t), intent(inout) :: s
     integer, intent(in) :: i, k, p
@@ -770,7 +772,7 @@ contains
     s%p(i)%kind = k
     s%p(i)%partner = p
     s%p(i)%count = 0
-    if (k == ev_pair) s%p(i)%count = s%d(p)%coll
+    if (k == ev_pair) s%p(i)%count = s%p(i)%pcount    ! p = pj: its counter at the scan
     call cal_set(s, i, t)
   end subroutine set_event
 
@@ -818,7 +820,7 @@ contains
       if (s%calendar /= cal_rescan) then
         i = cal_top(s)
         if (i == 0) exit
-        if (s%calendar == cal_buckets) call prefetch_next(s)
+        if (s%bq%hints) call prefetch_next(s)       ! hints: buckets from prefetch_min_n on
         te = s%p(i)%key
         if (te >= t_target) exit
         k = s%p(i)%kind
@@ -900,18 +902,18 @@ contains
       select case (w)                        ! exactly at contact with the wall
       case (1, 2)
         a%x = merge(a%r, s%lx - a%r, w == 1)
-        s%wall_impulse = s%wall_impulse + 2.0_dp*s%m(i)*abs(a%vx)/reached_perimeter(s, a%r)
+        s%wall_impulse = s%wall_impulse + 2.0_dp*s%p(i)%m*abs(a%vx)/reached_perimeter(s, a%r)
         a%vx = -a%vx
       case (3, 4)
         a%y = merge(a%r, s%ly - a%r, w == 3)
-        s%wall_impulse = s%wall_impulse + 2.0_dp*s%m(i)*abs(a%vy)/reached_perimeter(s, a%r)
+        s%wall_impulse = s%wall_impulse + 2.0_dp*s%p(i)%m*abs(a%vy)/reached_perimeter(s, a%r)
         a%vy = -a%vy
       end select
       a%coll = a%coll + 1
     end associate
     s%n_wall = s%n_wall + 1
     s%n_events = s%n_events + 1
-    call log_event(s, ev_wall, i, -w)
+    if (s%logging) call log_event(s, ev_wall, i, -w)
     if (s%calendar /= cal_rescan) call predict(s, i)
   end subroutine wall_hit
 
@@ -959,18 +961,18 @@ contains
       if (s%calendar /= cal_rescan) call predict(s, i)
       return
     end if
-    mu = s%m(i)*s%m(j)/(s%m(i) + s%m(j))
+    mu = s%p(i)%m*s%p(j)%m/(s%p(i)%m + s%p(j)%m)
     jx = 2.0_dp*mu*vn*nx                                            ! impulse on j (= -dp_i)
     jy = 2.0_dp*mu*vn*ny
-    s%d(i)%vx = s%d(i)%vx - jx/s%m(i)
-    s%d(i)%vy = s%d(i)%vy - jy/s%m(i)
-    s%d(j)%vx = s%d(j)%vx + jx/s%m(j)
-    s%d(j)%vy = s%d(j)%vy + jy/s%m(j)
+    s%d(i)%vx = s%d(i)%vx - jx/s%p(i)%m
+    s%d(i)%vy = s%d(i)%vy - jy/s%p(i)%m
+    s%d(j)%vx = s%d(j)%vx + jx/s%p(j)%m
+    s%d(j)%vy = s%d(j)%vy + jy/s%p(j)%m
     s%virial = s%virial - 2.0_dp*mu*vn*d                            ! r_ij . dp_i > 0
     s%d(i)%coll = s%d(i)%coll + 1
     s%d(j)%coll = s%d(j)%coll + 1
     s%n_pair = s%n_pair + 1
-    call log_event(s, ev_pair, min(i, j), max(i, j))
+    if (s%logging) call log_event(s, ev_pair, min(i, j), max(i, j))
     if (s%calendar /= cal_rescan) then
       call predict(s, i)
       call predict(s, j)
