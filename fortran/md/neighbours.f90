@@ -6,6 +6,8 @@
 !>              (never at a fixed interval), particles re-sorted by cell at rebuilds;
 !>   thesis     the thesis' variant (ch. 5.1): every listed pair within r_v = r_c + skin
 !>              is used (no cut-off test), same rebuild rule.
+!> A list (verlet, thesis, cells) may be FULL (nlist_t full): each pair in both rows, for passes
+!> that write the force on i only (pair_forces_full); built as the half list, then mirrored.
 !> Walls are never truncated.
 module neighbours
   use kinds, only: dp, i8
@@ -40,6 +42,7 @@ module neighbours
     integer, allocatable :: start(:)       !< (n + 1) CSR offsets into nbr
     integer, allocatable :: nbr(:)         !< neighbours j > i of each i
     logical :: with_owner = .false.        !< also fill own (flat pair loops)
+    logical :: full = .false.              !< each pair in both rows (nlist_mirror), j /= i
     integer, allocatable :: own(:)         !< i of each listed pair (with_owner only)
     !> also fill the ranges (verlet only): the listed j of row i, cut where two consecutive
     !> ones are more than range_gap apart, as contiguous ranges rlo(r)..rhi(r),
@@ -223,6 +226,44 @@ contains
     end do
   end subroutine nlist_bin
 
+  !> The half list made full in place: row i gets its listed j < i (in increasing j) followed
+  !> by its j > i (as built). One pass over the pairs, no distance recomputed.
+  subroutine nlist_mirror(nl, n)
+    type(nlist_t), intent(inout) :: nl
+    integer, intent(in) :: n
+    integer :: i, k, j, total, lo, hi
+    integer, allocatable :: hs(:), hn(:), pos(:)
+    total = nl%start(n + 1) - 1
+    allocate(hs(n + 1), pos(n + 1))
+    hs = nl%start(1:n + 1)
+    hn = nl%nbr(1:total)
+    pos = 0
+    do k = 1, total
+      pos(hn(k)) = pos(hn(k)) + 1          ! entries j < i of row hn(k)
+    end do
+    nl%start(1) = 1
+    do i = 1, n
+      nl%start(i + 1) = nl%start(i) + pos(i) + hs(i + 1) - hs(i)
+    end do
+    if (2*total > size(nl%nbr)) then
+      deallocate(nl%nbr)
+      allocate(nl%nbr(2*total + total/2 + 16), source=0)
+    end if
+    pos(1:n) = nl%start(1:n)
+    do i = 1, n                            ! rows < i have put their i into row i already
+      lo = hs(i)
+      hi = hs(i + 1) - 1
+      nl%nbr(pos(i):pos(i) + hi - lo) = hn(lo:hi)
+      pos(i) = pos(i) + hi - lo + 1
+      do k = lo, hi
+        j = hn(k)
+        nl%nbr(pos(j)) = i
+        pos(j) = pos(j) + 1
+      end do
+    end do
+    nl%pairs = 2*total
+  end subroutine nlist_mirror
+
   !> Build the half list (pairs i < j within rlist) from the cell grid.
   !> Assumes nlist_bin was called for the current positions. Two passes over
   !> the particles (count, then fill at the prefix-summed offsets), both
@@ -255,6 +296,7 @@ contains
     end do
     !$omp end parallel do
     nl%pairs = total
+    if (nl%full) call nlist_mirror(nl, n)
     call nlist_owners(nl, n)
     nl%xref = x
     nl%yref = y
@@ -279,20 +321,21 @@ contains
       ! particles sorted by cell (all but 'cells'): every j > i is in a cell of index >= i's,
       ! i.e. in i's cell row from i's cell on, or in the rows above
       half = nl%strategy /= nb_cells
+      ! the stencil's cells of one cell row are consecutive in cell_part: one loop over them
+      ! (the same j in the same order as cell by cell; a cell holds ~1 particle at the
+      ! production densities, so a loop per cell cost more than its distances)
       do jy = merge(iy, max(0, iy - cell_split), half), min(nl%ncy - 1, iy + cell_split)
-        do jx = merge(ix, max(0, ix - cell_split), half .and. jy == iy), &
-             min(nl%ncx - 1, ix + cell_split)
-          c = 1 + jx + nl%ncx*jy
-          do k = nl%cell_start(c), nl%cell_start(c + 1) - 1
-            j = nl%cell_part(k)
-            if (j <= i) cycle
-            dx = x(i) - x(j)
-            dy = y(i) - y(j)
-            if (dx*dx + dy*dy < rl2) then
-              if (fill) nl%nbr(at + count) = j
-              count = count + 1
-            end if
-          end do
+        jx = merge(ix, max(0, ix - cell_split), half .and. jy == iy)
+        c = 1 + jx + nl%ncx*jy
+        do k = nl%cell_start(c), nl%cell_start(c + 1 + min(nl%ncx - 1, ix + cell_split) - jx) - 1
+          j = nl%cell_part(k)
+          if (j <= i) cycle
+          dx = x(i) - x(j)
+          dy = y(i) - y(j)
+          if (dx*dx + dy*dy < rl2) then
+            if (fill) nl%nbr(at + count) = j
+            count = count + 1
+          end if
         end do
       end do
     end subroutine scan_row
