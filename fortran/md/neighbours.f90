@@ -277,7 +277,7 @@ contains
     allocate(cnt(n))
     !$omp parallel do if (n >= par_min_loop) schedule(static) private(i, dummy)
     do i = 1, n
-      call scan_row(i, .false., cnt(i), dummy)
+      call scan_row(i, .false., cnt(i), dummy, 0)
     end do
     !$omp end parallel do
     nl%start(1) = 1
@@ -292,7 +292,7 @@ contains
 
     !$omp parallel do if (n >= par_min_loop) schedule(static) private(i, dummy)
     do i = 1, n
-      call scan_row(i, .true., dummy, nl%start(i))
+      if (cnt(i) > 0) call scan_row(i, .true., dummy, nl%start(i), cnt(i))
     end do
     !$omp end parallel do
     nl%pairs = total
@@ -303,16 +303,20 @@ contains
     nl%valid = .true.
     nl%builds = nl%builds + 1
   contains
-    !> Neighbours j > i of particle i within rlist: count them, or write them
-    !> to nbr from position at.
-    subroutine scan_row(i, fill, count, at)
+    !> Neighbours j > i of particle i within rlist: count them, or write them (the row's
+    !> count, from the counting pass, is expected) to nbr from position at. No branch on the
+    !> distance (a candidate is in the list about half the time, so a branch mispredicts):
+    !> the count adds the test's 0 or 1, and the fill writes every candidate to the row's
+    !> next free slot (the slot's old value back when the candidate is out; never past the
+    !> row's last slot, which may be another thread's).
+    subroutine scan_row(i, fill, count, at, expected)
       integer, intent(in) :: i
       logical, intent(in) :: fill
       integer, intent(out) :: count
-      integer, intent(in) :: at
-      integer :: c, ix, iy, jx, jy, k, j
+      integer, intent(in) :: at, expected
+      integer :: c, ix, iy, jx, jy, k, j, slot
       real(dp) :: rl2, dx, dy
-      logical :: half
+      logical :: half, keep
       rl2 = nl%rlist**2
       count = 0
       c = cell_index(nl, x(i), y(i)) - 1
@@ -329,13 +333,14 @@ contains
         c = 1 + jx + nl%ncx*jy
         do k = nl%cell_start(c), nl%cell_start(c + 1 + min(nl%ncx - 1, ix + cell_split) - jx) - 1
           j = nl%cell_part(k)
-          if (j <= i) cycle
           dx = x(i) - x(j)
           dy = y(i) - y(j)
-          if (dx*dx + dy*dy < rl2) then
-            if (fill) nl%nbr(at + count) = j
-            count = count + 1
+          keep = dx*dx + dy*dy < rl2 .and. j > i
+          if (fill) then
+            slot = at + min(count, expected - 1)
+            nl%nbr(slot) = merge(j, nl%nbr(slot), keep)
           end if
+          count = count + merge(1, 0, keep)
         end do
       end do
     end subroutine scan_row
