@@ -26,7 +26,6 @@ module lj_box
   use neighbours, only: nlist_t, nlist_setup, nlist_refresh, nlist_owners, nb_all_pairs, &
        nb_cells, nb_verlet
   use pair_forces, only: lj_law_t, lj_law, pair_forces_all, pair_forces_list, lj_energy, &
-       pair_forces_full, &
        pair_table_t, max_bits
   use pair_eval, only: lj_eval_build
   use pair_table, only: table_json, eval_names, eval_code, eval_exact, eval_table
@@ -88,7 +87,6 @@ module lj_box
     real(dp) :: r_cut = 5                   !< R [a]
     character(len=nm) :: neighbour = 'verlet'
     real(dp) :: skin = 0.6_dp               !< [a]
-    character(len=nm) :: list = 'half'      !< | 'full' (each pair in both rows)
     character(len=nm) :: pair_eval = 'exact'   !< | 'table' | 'single' | 'rsqrt'
     real(dp) :: pair_table_error = 1.0e-6_dp  !< pair_eval /= 'exact': largest relative force error
     ! &physics
@@ -177,10 +175,6 @@ contains
          'all pairs', choices=join(neighbour_names))
     call s%key('skin', self%skin, 'a', 'Verlet list skin (> 0 with neighbour = ''verlet'')', &
          lo=0.0_dp, hi=1.0e3_dp)
-    call s%key('list', self%list, '', 'neighbour list (verlet, cells): half (each pair once, '// &
-         'the reaction written to j) or full (each pair in both rows, the force on i only: '// &
-         '2x the evaluations, no reaction scatter; momentum conserved to round-off)', &
-         choices='half|full')
     call s%key('pair_eval', self%pair_eval, '', 'force evaluation: exact (the reference), a '// &
          'table in r^2 between r_m and r_cut (no division) built at load to pair_table_error, '// &
          'or for p = 6 single precision pair arithmetic (double sums) or rsqrt (1/r^2 by '// &
@@ -396,7 +390,6 @@ contains
       call nlist_setup(self%nl, self%strategy, self%r_cut, self%skin, self%l, self%l, &
            int(self%n))
       self%nl%with_owner = .true.
-      self%nl%full = self%list == 'full'
     end if
   end subroutine build
 
@@ -558,14 +551,9 @@ contains
                s%s3, self%r2min, law=self%lj, tab=self%ljtab)
         else
           call nlist_refresh(nl, s)
-          if (nl%full) then
-            call pair_forces_full(s%n, s%x, s%y, nl%start, nl%nbr, nl%own, s%fx, s%fy, &
-                 self%r2min, self%lj, tab=self%ljtab)
-          else
-            call pair_forces_list(s%n, s%x, s%y, s%mu, s%wsin, 1.0_dp, self%r_cut**2, &
+          call pair_forces_list(s%n, s%x, s%y, s%mu, s%wsin, 1.0_dp, self%r_cut**2, &
                0.0_dp, .true., no_r3, nl%start, nl%nbr, s%fx, s%fy, s%s3, self%r2min, &
                law=self%lj, own=nl%own, tab=self%ljtab)
-          end if
           nl%evaluated = nl%evaluated + nl%pairs
         end if
       end if
@@ -586,7 +574,7 @@ contains
         if (self%strategy == nb_all_pairs) then
           up = lj_energy(s%n, s%x, s%y, self%lj)
         else
-          up = lj_energy(s%n, s%x, s%y, self%lj, self%nl%start, self%nl%nbr, self%nl%full)
+          up = lj_energy(s%n, s%x, s%y, self%lj, self%nl%start, self%nl%nbr)
         end if
       end if
       uf = field_potential(self%fl, s%t, s%n, s%x, s%y)

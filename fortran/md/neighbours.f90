@@ -6,8 +6,6 @@
 !>              (never at a fixed interval), particles re-sorted by cell at rebuilds;
 !>   thesis     the thesis' variant (ch. 5.1): every listed pair within r_v = r_c + skin
 !>              is used (no cut-off test), same rebuild rule.
-!> A list (verlet, thesis, cells) may be FULL (nlist_t full): each pair in both rows, for passes
-!> that write the force on i only (pair_forces_full); built as the half list, then mirrored.
 !> Walls are never truncated.
 module neighbours
   use kinds, only: dp, i8
@@ -42,7 +40,6 @@ module neighbours
     integer, allocatable :: start(:)       !< (n + 1) CSR offsets into nbr
     integer, allocatable :: nbr(:)         !< neighbours j > i of each i
     logical :: with_owner = .false.        !< also fill own (flat pair loops)
-    logical :: full = .false.              !< each pair in both rows (nlist_mirror), j /= i
     integer, allocatable :: own(:)         !< i of each listed pair (with_owner only)
     !> also fill the ranges (verlet only): the listed j of row i, cut where two consecutive
     !> ones are more than range_gap apart, as contiguous ranges rlo(r)..rhi(r),
@@ -226,44 +223,6 @@ contains
     end do
   end subroutine nlist_bin
 
-  !> The half list made full in place: row i gets its listed j < i (in increasing j) followed
-  !> by its j > i (as built). One pass over the pairs, no distance recomputed.
-  subroutine nlist_mirror(nl, n)
-    type(nlist_t), intent(inout) :: nl
-    integer, intent(in) :: n
-    integer :: i, k, j, total, lo, hi
-    integer, allocatable :: hs(:), hn(:), pos(:)
-    total = nl%start(n + 1) - 1
-    allocate(hs(n + 1), pos(n + 1))
-    hs = nl%start(1:n + 1)
-    hn = nl%nbr(1:total)
-    pos = 0
-    do k = 1, total
-      pos(hn(k)) = pos(hn(k)) + 1          ! entries j < i of row hn(k)
-    end do
-    nl%start(1) = 1
-    do i = 1, n
-      nl%start(i + 1) = nl%start(i) + pos(i) + hs(i + 1) - hs(i)
-    end do
-    if (2*total > size(nl%nbr)) then
-      deallocate(nl%nbr)
-      allocate(nl%nbr(2*total + total/2 + 16), source=0)
-    end if
-    pos(1:n) = nl%start(1:n)
-    do i = 1, n                            ! rows < i have put their i into row i already
-      lo = hs(i)
-      hi = hs(i + 1) - 1
-      nl%nbr(pos(i):pos(i) + hi - lo) = hn(lo:hi)
-      pos(i) = pos(i) + hi - lo + 1
-      do k = lo, hi
-        j = hn(k)
-        nl%nbr(pos(j)) = i
-        pos(j) = pos(j) + 1
-      end do
-    end do
-    nl%pairs = 2*total
-  end subroutine nlist_mirror
-
   !> Build the half list (pairs i < j within rlist) from the cell grid.
   !> Assumes nlist_bin was called for the current positions. Two passes over
   !> the particles (count, then fill at the prefix-summed offsets), both
@@ -296,7 +255,6 @@ contains
     end do
     !$omp end parallel do
     nl%pairs = total
-    if (nl%full) call nlist_mirror(nl, n)
     call nlist_owners(nl, n)
     nl%xref = x
     nl%yref = y

@@ -33,7 +33,6 @@ module pair_forces
   private
 
   public :: dipole_kernel, pair_forces_all, pair_forces_list, pair_forces_far, pair_energy_all
-  public :: pair_forces_full
   public :: lj_law_t, lj_law, lj_kernel, lj_energy
   public :: split_t, split_of
   public :: pair_table_t, max_bits
@@ -53,7 +52,6 @@ module pair_forces
   integer, parameter :: kernel_dipole = 1, kernel_lj6 = 2, kernel_lj = 3
   integer, parameter :: side_none = 0, side_near = 1, side_far = 2   !< split weights (dipole_ranges)
   integer, parameter :: pair_chunk = 256   !< pairs per chunk of the flat pair loop
-  integer, parameter :: full_block = 32    !< rows per block of the full-list pass (full_rows)
 
   !> Seed 000's steric law between r_m and the cut-off R: U = 4 U0 ((2/r)^2p - (2/r)^p),
   !> continued linearly below r_m (constant force |U'(r_m)|). Lengths in a, energies
@@ -312,21 +310,17 @@ contains
 
   !> Potential energy of the law [m g a] (pairs within R): over the pairs of a half list
   !> (start, nbr) when given (its radius >= R), else every pair.
-  function lj_energy(n, x, y, l, start, nbr, full) result(e)
+  function lj_energy(n, x, y, l, start, nbr) result(e)
     integer, intent(in) :: n
     real(dp), intent(in) :: x(n), y(n)
     type(lj_law_t), intent(in) :: l
     integer, intent(in), optional :: start(:), nbr(:)
-    logical, intent(in), optional :: full   !< the list is full (each pair twice): j > i only
     real(dp) :: e
     integer :: i, j, k
     e = 0
     do i = 1, n - 1
       if (present(start)) then
         do k = start(i), start(i + 1) - 1
-          if (present(full)) then
-            if (full .and. nbr(k) < i) cycle
-          end if
           e = e + u_pair(i, nbr(k))
         end do
       else
@@ -435,97 +429,6 @@ contains
            0.0_dp, rc2, shift4, check, with_r3, start, nbr, fx, fy, s3, r2min, own, tab=tab)
     end if
   end subroutine pair_forces_list
-
-  !> Lennard-Jones forces from a FULL neighbour list (each pair in both rows: nlist_t full,
-  !> own(k) the row of entry k): the force on i only, summed over its row; no reaction, no
-  !> spill, so each thread writes its own rows alone. Twice the kernel evaluations of the
-  !> half list; Newton's third law then holds to round-off (both halves of a pair are the
-  !> same expression of the same separation, only the order of the sums on i differs).
-  !> Pairs at r >= R give 0 (the law's cut-off). r2min: the smallest listed squared distance.
-  subroutine pair_forces_full(n, x, y, start, nbr, own, fx, fy, r2min, law, tab)
-    !$ use omp_lib, only: omp_get_max_threads
-    integer, intent(in) :: n
-    real(dp), intent(in) :: x(n), y(n)
-    integer, intent(in), contiguous :: start(:), nbr(:), own(:)
-    real(dp), intent(inout) :: fx(n), fy(n)
-    real(dp), intent(out) :: r2min
-    type(lj_law_t), intent(in) :: law
-    type(pair_table_t), intent(in), optional :: tab
-    integer :: nt, t, lo, hi
-    real(dp) :: low
-    nt = 1
-    !$ if (real(start(n + 1) - 1, dp) >= 1.0e5_dp) nt = min(omp_get_max_threads(), 64)
-    r2min = huge(1.0_dp)
-    if (nt == 1) then
-      call full_rows(law, 1, n, n, x, y, start, nbr, own, fx, fy, r2min, tab)
-      return
-    end if
-    ! rows split evenly (full rows have similar lengths); every thread writes its rows only
-    !$omp parallel do num_threads(nt) schedule(static) private(t, lo, hi, low) &
-    !$omp reduction(min: r2min)
-    do t = 1, nt
-      lo = (t - 1)*(n/nt) + min(t - 1, mod(n, nt)) + 1
-      hi = t*(n/nt) + min(t, mod(n, nt))
-      low = huge(1.0_dp)
-      call full_rows(law, lo, hi, n, x, y, start, nbr, own, fx, fy, low, tab)
-      r2min = min(r2min, low)
-    end do
-    !$omp end parallel do
-  end subroutine pair_forces_full
-
-  !> Rows i_lo..i_hi of a full list, full_block rows at a time, vectorised across the rows:
-  !> step t takes entry t of every row of the block (a row already done contributes a masked
-  !> zero at r^2 = R^2), the law by lj_chunk, then ax(b) += c dx lane by lane (no chain of
-  !> dependent adds from one pair to the next; each row's sum is in its own order, t = 0, 1, ..).
-  subroutine full_rows(l, i_lo, i_hi, n, x, y, start, nbr, own, fx, fy, r2low, tab)
-    type(lj_law_t), intent(in) :: l
-    integer, intent(in) :: i_lo, i_hi, n
-    real(dp), intent(in) :: x(n), y(n)
-    integer, intent(in) :: start(n + 1), nbr(*), own(*)
-    real(dp), intent(inout) :: fx(n), fy(n), r2low
-    type(pair_table_t), intent(in), optional :: tab
-    integer, parameter :: rb = full_block
-    integer :: i, j, b, t, i0, nb, kk, k_hi, maxlen
-    real(dp) :: low, d1, d2, r2, rc2
-    real(dp) :: dxs(rb), dys(rb), r2s(rb), cs(rb), ax(rb), ay(rb)
-    logical :: ok
-    k_hi = start(i_hi + 1) - 1
-    if (k_hi < start(i_lo)) return
-    if (own(1) < 0) return           ! (own unused: the rows come from start)
-    low = r2low
-    rc2 = l%rc2
-    do i0 = i_lo, i_hi, rb
-      nb = min(rb, i_hi - i0 + 1)
-      maxlen = 0
-      do b = 1, nb
-        maxlen = max(maxlen, start(i0 + b) - start(i0 + b - 1))
-      end do
-      ax = 0; ay = 0
-      do t = 0, maxlen - 1
-        do b = 1, nb
-          i = i0 + b - 1
-          kk = min(start(i) + t, k_hi)
-          ok = start(i) + t < start(i + 1)
-          j = nbr(kk)
-          d1 = x(i) - x(j)
-          d2 = y(i) - y(j)
-          r2 = d1*d1 + d2*d2
-          dxs(b) = d1
-          dys(b) = d2
-          r2s(b) = merge(r2, rc2, ok)
-          low = min(low, merge(r2, huge(1.0_dp), ok))
-        end do
-        call lj_chunk(l, nb, r2s, cs, tab)
-        do b = 1, nb
-          ax(b) = ax(b) + cs(b)*dxs(b)
-          ay(b) = ay(b) + cs(b)*dys(b)
-        end do
-      end do
-      fx(i0:i0 + nb - 1) = fx(i0:i0 + nb - 1) + ax(1:nb)
-      fy(i0:i0 + nb - 1) = fy(i0:i0 + nb - 1) + ay(1:nb)
-    end do
-    r2low = low
-  end subroutine full_rows
 
   pure integer function kernel_of(law) result(k)
     type(lj_law_t), intent(in), optional :: law
