@@ -229,33 +229,30 @@ contains
   !> Assumes nlist_bin was called for the current positions. Two passes over
   !> the particles (count, then fill at the prefix-summed offsets), both
   !> parallel from par_min_loop particles; the list is the same for any thread count.
-  !> Serially, when the candidates of every row (the stencil's particles) fit in nbr, one
-  !> pass instead (each row written where the previous one ended; the same array).
+  !> Serially, one pass instead: each row written where the previous one ended, while its
+  !> candidates (the stencil's particles) fit in nbr; a row that might not fit falls back to
+  !> the two passes. The rows written by then are those of the two passes at the same
+  !> places, and every other slot holds its old value: nbr is the same array either way.
   subroutine nlist_build(nl, n, x, y)
     !$ use omp_lib, only: omp_get_max_threads
     type(nlist_t), intent(inout) :: nl
     integer, intent(in) :: n
     real(dp), intent(in) :: x(n), y(n)
     integer :: i, total, dummy, cand
-    integer(i8) :: bound
     integer, allocatable :: cnt(:)
     logical :: serial
     serial = n < par_min_loop
     !$ serial = serial .or. omp_get_max_threads() == 1
     if (serial) then
-      bound = 0
+      nl%start(1) = 1
       do i = 1, n
         call scan_row(i, row_candidates, cand, 0, 0)
-        bound = bound + cand
+        if (nl%start(i) + cand - 1 > size(nl%nbr)) exit
+        call scan_row(i, row_append, cand, nl%start(i), 0)
+        nl%start(i + 1) = nl%start(i) + cand
       end do
-      if (bound <= size(nl%nbr)) then
-        nl%start(1) = 1
-        do i = 1, n
-          call scan_row(i, row_append, cand, nl%start(i), 0)
-          nl%start(i + 1) = nl%start(i) + cand
-        end do
-        total = nl%start(n + 1) - 1
-        call built(total)
+      if (i > n) then
+        call built(nl%start(n + 1) - 1)
         return
       end if
     end if
