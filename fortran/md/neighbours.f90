@@ -295,8 +295,8 @@ contains
     !> list about half the time, so a branch mispredicts): the count adds the test's 0 or 1,
     !> and the fill writes every candidate to the row's next free slot (the slot's old value
     !> back when the candidate is out; row_fill never past the row's last slot, which may be
-    !> another thread's; row_append at most one past the row's candidates, only ever
-    !> with the old value there).
+    !> another thread's; row_append never past the row's candidates, which nlist_build
+    !> has checked fit: a slot past the row's last entry only ever gets its old value back).
     subroutine scan_row(i, mode, count, at, expected)
       integer, intent(in) :: i, mode
       integer, intent(out) :: count
