@@ -26,6 +26,8 @@ module neighbours
   !> particle against 9 with cells of side rlist; the particles sorted by these cells make the
   !> ranges of a row tighter)
   integer, parameter :: cell_split = 2
+  !> what nlist_build's scan_row does with a row
+  integer, parameter :: row_count = 1, row_fill = 2, row_append = 3, row_candidates = 4
 
   type :: nlist_t
     integer :: strategy = nb_all_pairs
@@ -227,16 +229,37 @@ contains
   !> Assumes nlist_bin was called for the current positions. Two passes over
   !> the particles (count, then fill at the prefix-summed offsets), both
   !> parallel from par_min_loop particles; the list is the same for any thread count.
+  !> Serially, one pass instead: each row written where the previous one ended, while its
+  !> candidates (the stencil's particles) fit in nbr; a row that might not fit falls back to
+  !> the two passes. The rows written by then are those of the two passes at the same
+  !> places, and every other slot holds its old value: nbr is the same array either way.
   subroutine nlist_build(nl, n, x, y)
+    !$ use omp_lib, only: omp_get_max_threads
     type(nlist_t), intent(inout) :: nl
     integer, intent(in) :: n
     real(dp), intent(in) :: x(n), y(n)
-    integer :: i, total, dummy
+    integer :: i, total, dummy, cand
     integer, allocatable :: cnt(:)
+    logical :: serial
+    serial = n < par_min_loop
+    !$ serial = serial .or. omp_get_max_threads() == 1
+    if (serial) then
+      nl%start(1) = 1
+      do i = 1, n
+        call scan_row(i, row_candidates, cand, 0, 0)
+        if (nl%start(i) + cand - 1 > size(nl%nbr)) exit
+        call scan_row(i, row_append, cand, nl%start(i), 0)
+        nl%start(i + 1) = nl%start(i) + cand
+      end do
+      if (i > n) then
+        call built(nl%start(n + 1) - 1)
+        return
+      end if
+    end if
     allocate(cnt(n))
     !$omp parallel do if (n >= par_min_loop) schedule(static) private(i, dummy)
     do i = 1, n
-      call scan_row(i, .false., cnt(i), dummy)
+      call scan_row(i, row_count, cnt(i), dummy, 0)
     end do
     !$omp end parallel do
     nl%start(1) = 1
@@ -251,26 +274,36 @@ contains
 
     !$omp parallel do if (n >= par_min_loop) schedule(static) private(i, dummy)
     do i = 1, n
-      call scan_row(i, .true., dummy, nl%start(i))
+      if (cnt(i) > 0) call scan_row(i, row_fill, dummy, nl%start(i), cnt(i))
     end do
     !$omp end parallel do
-    nl%pairs = total
-    call nlist_owners(nl, n)
-    nl%xref = x
-    nl%yref = y
-    nl%valid = .true.
-    nl%builds = nl%builds + 1
+    call built(total)
   contains
-    !> Neighbours j > i of particle i within rlist: count them, or write them
-    !> to nbr from position at.
-    subroutine scan_row(i, fill, count, at)
-      integer, intent(in) :: i
-      logical, intent(in) :: fill
+    subroutine built(total)
+      integer, intent(in) :: total
+      nl%pairs = total
+      call nlist_owners(nl, n)
+      nl%xref = x
+      nl%yref = y
+      nl%valid = .true.
+      nl%builds = nl%builds + 1
+    end subroutine built
+    !> Neighbours j > i of particle i within rlist, by mode: count them (row_count), write
+    !> them to nbr from position at (row_fill: the row's count from the counting pass is
+    !> expected; row_append: serial, nbr holds the candidates), or count the candidates, the
+    !> stencil's particles (row_candidates). No branch on the distance (a candidate is in the
+    !> list about half the time, so a branch mispredicts): the count adds the test's 0 or 1,
+    !> and the fill writes every candidate to the row's next free slot (the slot's old value
+    !> back when the candidate is out; row_fill never past the row's last slot, which may be
+    !> another thread's; row_append never past the row's candidates, which nlist_build
+    !> has checked fit: a slot past the row's last entry only ever gets its old value back).
+    subroutine scan_row(i, mode, count, at, expected)
+      integer, intent(in) :: i, mode
       integer, intent(out) :: count
-      integer, intent(in) :: at
-      integer :: c, ix, iy, jx, jy, k, j
+      integer, intent(in) :: at, expected
+      integer :: c, ix, iy, jx, jy, k, j, slot, k_hi
       real(dp) :: rl2, dx, dy
-      logical :: half
+      logical :: half, keep
       rl2 = nl%rlist**2
       count = 0
       c = cell_index(nl, x(i), y(i)) - 1
@@ -279,21 +312,35 @@ contains
       ! particles sorted by cell (all but 'cells'): every j > i is in a cell of index >= i's,
       ! i.e. in i's cell row from i's cell on, or in the rows above
       half = nl%strategy /= nb_cells
+      ! the stencil's cells of one cell row are consecutive in cell_part: one loop over them
+      ! (the same j in the same order as cell by cell; a cell holds ~1 particle at the
+      ! production densities, so a loop per cell cost more than its distances)
       do jy = merge(iy, max(0, iy - cell_split), half), min(nl%ncy - 1, iy + cell_split)
-        do jx = merge(ix, max(0, ix - cell_split), half .and. jy == iy), &
-             min(nl%ncx - 1, ix + cell_split)
-          c = 1 + jx + nl%ncx*jy
-          do k = nl%cell_start(c), nl%cell_start(c + 1) - 1
+        jx = merge(ix, max(0, ix - cell_split), half .and. jy == iy)
+        c = 1 + jx + nl%ncx*jy
+        k_hi = nl%cell_start(c + 1 + min(nl%ncx - 1, ix + cell_split) - jx) - 1
+        select case (mode)
+        case (row_candidates)
+          count = count + k_hi - nl%cell_start(c) + 1
+        case (row_count)
+          do k = nl%cell_start(c), k_hi
             j = nl%cell_part(k)
-            if (j <= i) cycle
             dx = x(i) - x(j)
             dy = y(i) - y(j)
-            if (dx*dx + dy*dy < rl2) then
-              if (fill) nl%nbr(at + count) = j
-              count = count + 1
-            end if
+            count = count + merge(1, 0, dx*dx + dy*dy < rl2 .and. j > i)
           end do
-        end do
+        case default
+          do k = nl%cell_start(c), k_hi
+            j = nl%cell_part(k)
+            dx = x(i) - x(j)
+            dy = y(i) - y(j)
+            keep = dx*dx + dy*dy < rl2 .and. j > i
+            slot = at + count
+            if (mode == row_fill) slot = at + min(count, expected - 1)
+            nl%nbr(slot) = merge(j, nl%nbr(slot), keep)
+            count = count + merge(1, 0, keep)
+          end do
+        end select
       end do
     end subroutine scan_row
   end subroutine nlist_build
