@@ -112,10 +112,12 @@ def timing_of(meta: Mapping[str, Any]) -> EngineTiming:
 
 
 def run_engine(scene: Any, out: Path, threads: int) -> Any:
-    """Run ``scene`` with the partsim executable (OMP_NUM_THREADS=threads) into ``out``."""
+    """Run ``scene`` with the partsim executable (OMP_NUM_THREADS=threads) into ``out``, a
+    benchmark's scratch directory: a run left there by an earlier invocation is replaced (a
+    re-run used to stop at "holds another run")."""
     from pyorch.run import run
 
-    return run(scene, out, progress=False, threads=threads)
+    return run(scene, out, progress=False, threads=threads, overwrite=True)
 
 
 def best_of(timings: Sequence[EngineTiming]) -> EngineTiming:
