@@ -9,7 +9,7 @@ module bed_method
   use ckpt, only: ckpt_writer_t, ckpt_put
   use start_file, only: start_json, check_start_crc
   use, intrinsic :: iso_fortran_env, only: int8
-  use scene_input, only: int_str
+  use scene_input, only: int_str, json_real
   use engine, only: sim_t, sim_load, sim_step, pairs_per_step
   use protocol, only: phase_names
   use scene, only: scene_keys
@@ -30,7 +30,6 @@ module bed_method
     procedure :: save_state, restore_state, counters, progress_text, json_fields
   end type bed_t
 
-  character(len=*), parameter :: rfmt = 'es24.16e3'
 
 contains
 
@@ -167,15 +166,15 @@ contains
            '  "pair_evaluations": '//int_str(sim%nl%evaluated)//','//nl// &
            table_json(m%tab)// &
            '  "units": {'//nl// &
-           '    "length_m": '//r(m%length_unit)//','//nl// &
-           '    "time_s": '//r(m%time_unit)//','//nl// &
-           '    "mass_kg": '//r(m%mass_unit)//','//nl// &
-           '    "force_N": '//r(m%force_unit)//','//nl// &
-           '    "moment_Am2": '//r(m%moment_unit)//nl// &
+           '    "length_m": '//json_real(m%length_unit)//','//nl// &
+           '    "time_s": '//json_real(m%time_unit)//','//nl// &
+           '    "mass_kg": '//json_real(m%mass_unit)//','//nl// &
+           '    "force_N": '//json_real(m%force_unit)//','//nl// &
+           '    "moment_Am2": '//json_real(m%moment_unit)//nl// &
            '  },'//nl// &
            '  "groups": {'//nl// &
-           '    "F": '//r(m%big_f)//','//nl// &
-           '    "G": '//r(m%big_g)//nl// &
+           '    "F": '//json_real(m%big_f)//','//nl// &
+           '    "G": '//json_real(m%big_g)//nl// &
            '  },'//nl
     end associate
   contains
@@ -190,13 +189,6 @@ contains
       end do
       t = t//']'
     end function counts
-    function r(v) result(t)
-      real(dp), intent(in) :: v
-      character(len=:), allocatable :: t
-      character(len=32) :: buf
-      write(buf, '('//rfmt//')') v
-      t = trim(adjustl(buf))
-    end function r
   end function json_fields
 
 end module bed_method

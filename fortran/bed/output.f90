@@ -10,7 +10,7 @@ module output
   use errors, only: status_t
   use model, only: model_t
   use state, only: state_t
-  use frames, only: json_real
+  use scene_input, only: json_real
   use output_set, only: output_set_t
   implicit none
   private

@@ -7,7 +7,7 @@ module scene
   use, intrinsic :: ieee_arithmetic, only: ieee_is_finite
   use kinds, only: dp, i8
   use errors, only: status_t, set_error, exit_bad_input, exit_io, exit_internal, msg_len
-  use scene_input, only: printable, real_str
+  use scene_input, only: printable, real_str, int_str
   use schema, only: schema_t
   use memory, only: check_memory_need
   use pair_table, only: eval_names
@@ -385,16 +385,16 @@ contains
     ! (a start file is checked for overlaps instead)
     if (len_trim(sc%start_file) == 0 .and. real(sc%n, dp) > sc%width* &
          merge(sc%fill_height, hs, sc%fill_height > 0.0_dp)/1.05_dp**2) &
-         call bad('particles', 'n', istr(sc%n), 'particles cannot fit in the cell below the '// &
-         'piston (at most '//istr(int(sc%width*merge(sc%fill_height, hs, sc%fill_height > &
-         0.0_dp)/1.05_dp**2))//' in '//real_str(sc%width)//' x '//real_str(merge(sc%fill_height, hs, &
+         call bad('particles', 'n', int_str(int(sc%n, i8)), 'particles cannot fit in the cell '// &
+         'below the piston (at most '//int_str(int(sc%width*merge(sc%fill_height, hs, &
+         sc%fill_height > 0.0_dp)/1.05_dp**2, i8))//' in '//real_str(sc%width)//' x '//real_str(merge(sc%fill_height, hs, &
          sc%fill_height > 0.0_dp))//' D1^2)')
     if (st%code /= 0) return
     call check_memory(sc, path, st)
     if (st%code /= 0) return
 
     if (sc%energy_every > 0 .and. trim(sc%wall_law) == 'slab') call bad('output', &
-         'energy_every', istr(sc%energy_every), 'must be 0 with wall_law = ''slab'' '// &
+         'energy_every', int_str(int(sc%energy_every, i8)), 'must be 0 with wall_law = ''slab'' '// &
          '(the slab law has no closed-form potential)')
 
   contains
@@ -429,8 +429,8 @@ contains
     subroutine ipos(group, key, v, lo, hi)
       character(len=*), intent(in) :: group, key
       integer, intent(in) :: v, lo, hi
-      if (v < lo .or. v > hi) call bad(group, key, istr(v), &
-           'allowed range ['//istr(lo)//', '//istr(hi)//']')
+      if (v < lo .or. v > hi) call bad(group, key, int_str(int(v, i8)), &
+           'allowed range ['//int_str(int(lo, i8))//', '//int_str(int(hi, i8))//']')
     end subroutine ipos
 
 
@@ -458,7 +458,7 @@ contains
       write(b, '(es9.2)') t/sc%dt
       call set_error(st, exit_bad_input, trim(path)//': &integration dt = '//real_str(sc%dt)// &
            ': the protocol lasts '//real_str(t)//' T, about '//trim(adjustl(b))//' steps; at '// &
-           'most '//istr8(max_steps)//' steps are allowed (raise dt or shorten the protocol)')
+           'most '//int_str(max_steps)//' steps are allowed (raise dt or shorten the protocol)')
     end if
   end subroutine check_step_count
 
@@ -485,25 +485,8 @@ contains
     type(scene_t), intent(in) :: sc
     character(len=*), intent(in) :: path
     type(status_t), intent(inout) :: st
-    call check_memory_need(memory_estimate(sc), trim(path)//': &particles n = '//istr(sc%n), &
-         'reduce n', st)
+    call check_memory_need(memory_estimate(sc), trim(path)//': &particles n = '// &
+         int_str(int(sc%n, i8)), 'reduce n', st)
   end subroutine check_memory
-
-  function istr8(v) result(s)
-    integer(i8), intent(in) :: v
-    character(len=:), allocatable :: s
-    character(len=24) :: b
-    write(b, '(i0)') v
-    s = trim(b)
-  end function istr8
-
-
-  function istr(v) result(s)
-    integer, intent(in) :: v
-    character(len=:), allocatable :: s
-    character(len=20) :: b
-    write(b, '(i0)') v
-    s = trim(b)
-  end function istr
 
 end module scene

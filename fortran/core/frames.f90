@@ -46,12 +46,12 @@ module frames
   use kinds, only: dp, i8
   use errors, only: status_t, set_error, exit_ok, exit_io, exit_internal, exit_numerical
   use files, only: cfile_t, cf_open, cf_is_open, cf_write, cf_sync, cf_close, file_exists
-  use scene_input, only: int_str
+  use scene_input, only: int_str, json_real
   implicit none
   private
 
   public :: frames_t, frames_open, frames_begin, frames_put, frames_end, frames_flush, &
-       frames_close, frames_is_open, frames_magic, frames_version, json_real
+       frames_close, frames_is_open, frames_magic, frames_version
 
   character(len=8), parameter :: frames_magic = 'PYORCHFR'
   integer, parameter :: frames_version = 1
@@ -332,14 +332,5 @@ contains
            'columns this scene writes')
     end if
   end subroutine check_existing
-
-  !> A real as a JSON number that round-trips a real64 (e.g. 2.0000000000000000E+001).
-  function json_real(v) result(s)
-    real(dp), intent(in) :: v
-    character(len=:), allocatable :: s
-    character(len=32) :: buf
-    write(buf, '(es24.16e3)') v
-    s = trim(adjustl(buf))
-  end function json_real
 
 end module frames

@@ -7,12 +7,12 @@ module run_meta
   use method, only: method_t
   use files, only: rename_into_place, remove_file, cfile_t, cf_open, cf_write, cf_close
   use ckpt, only: engine_version
+  use scene_input, only: int_str, json_real
   implicit none
   private
 
   public :: write_run_json, json_escape, n_threads
 
-  character(len=*), parameter :: rfmt = 'es24.16e3'
 
 contains
 
@@ -46,15 +46,15 @@ contains
          '  "scene": "'//json_escape(trim(scene_path))//'",'//nl// &
          '  "run_id": "'//id_hex//'",'//nl// &
          '  "status": "'//json_escape(trim(status))//'",'//nl// &
-         '  "exit_code": '//istr(int(code, i8))//','//nl// &
+         '  "exit_code": '//int_str(int(code, i8))//','//nl// &
          '  "message": "'//json_escape(trim(message))//'",'//nl// &
-         '  "steps_done": '//istr(done)//','//nl// &
-         '  "steps_total": '//istr(total)//','//nl// &
-         '  "t_reached": '//rstr(t_now)//','//nl// &
-         '  "wall_time_s": '//rstr(wall)//','//nl// &
-         '  "wall_time_per_step_s": '//rstr(per_step)//','//nl// &
+         '  "steps_done": '//int_str(done)//','//nl// &
+         '  "steps_total": '//int_str(total)//','//nl// &
+         '  "t_reached": '//json_real(t_now)//','//nl// &
+         '  "wall_time_s": '//json_real(wall)//','//nl// &
+         '  "wall_time_per_step_s": '//json_real(per_step)//','//nl// &
          m%json_fields()// &
-         '  "threads": '//istr(int(n_threads(), i8))//nl//'}'//nl
+         '  "threads": '//int_str(int(n_threads(), i8))//nl//'}'//nl
     call cf_open(f, tmp, 'w', lst)
     call cf_write(f, transfer(text, [0_int8]), lst)
     call cf_close(f, lst, sync=trim(status) /= 'running')
@@ -64,21 +64,6 @@ contains
       call remove_file(tmp, junk)
     end if
     if (lst%code /= exit_ok) call set_error(st, lst%code, trim(lst%msg))
-  contains
-    function istr(v) result(t)
-      integer(i8), intent(in) :: v
-      character(len=:), allocatable :: t
-      character(len=24) :: buf
-      write(buf, '(i0)') v
-      t = trim(buf)
-    end function istr
-    function rstr(v) result(t)
-      real(dp), intent(in) :: v
-      character(len=:), allocatable :: t
-      character(len=32) :: buf
-      write(buf, '('//rfmt//')') v
-      t = trim(adjustl(buf))
-    end function rstr
   end subroutine write_run_json
 
   function json_escape(s) result(r)

@@ -11,7 +11,7 @@ module scene_input
   private
 
   public :: kind_len, read_kind, read_text, printable, lower_case, &
-       check_real, check_int, choice_index, quoted, real_str, int_str
+       check_real, check_int, choice_index, quoted, real_str, int_str, json_real
 
   integer, parameter :: kind_len = 32
   integer(i8), parameter :: max_scene_bytes = 1048576   !< a scene file is text of at most 1 MiB
@@ -317,6 +317,15 @@ contains
     write(buf, '(i0)') v
     s = trim(buf)
   end function int_str
+
+  !> A real as a JSON number that round-trips a real64 (e.g. 2.0000000000000000E+001).
+  function json_real(v) result(s)
+    real(dp), intent(in) :: v
+    character(len=:), allocatable :: s
+    character(len=32) :: buf
+    write(buf, '(es24.16e3)') v
+    s = trim(adjustl(buf))
+  end function json_real
 
 
 end module scene_input

@@ -19,7 +19,7 @@ module edmd_dla
   use method, only: method_t, open_default
   use memory, only: check_memory_need
   use tables, only: rfmt
-  use frames, only: json_real
+  use scene_input, only: json_real
   use output_set, only: due, frames_as
   use ckpt, only: ckpt_writer_t, ckpt_put
   use, intrinsic :: iso_fortran_env, only: int8

@@ -17,7 +17,7 @@ module lj_box
   use method, only: method_t
   use memory, only: check_memory_need
   use tables, only: rfmt
-  use frames, only: json_real
+  use scene_input, only: json_real
   use output_set, only: due, frames_as
   use scene_input, only: kind_len, choice_index, int_str, real_str
   use schema, only: schema_t, max_steps_all

@@ -22,6 +22,7 @@
 !> over the run's range of r against the exact law (max_err, rms_err) and printed in run.json.
 module pair_table
   use kinds, only: dp, i8
+  use scene_input, only: int_str, json_real
   implicit none
   private
 
@@ -133,31 +134,17 @@ contains
       return
     end if
     text = '  "pair_eval": "'//trim(names(t%eval))//'",'//nl// &
-         '  "pair_max_rel_error": '//r(t%max_err)//','//nl// &
-         '  "pair_typical_rel_error": '//r(t%rms_err)//','//nl
+         '  "pair_max_rel_error": '//json_real(t%max_err)//','//nl// &
+         '  "pair_typical_rel_error": '//json_real(t%rms_err)//','//nl
     if (t%eval == eval_table) then
-      text = text//'  "pair_table": {"requested_rel_error": '//r(t%requested)// &
-           ', "segments_per_octave": '//i(2**t%bits)//', "segments": '//i(t%n)// &
-           ', "r_range": ['//r(sqrt(t%lo2))//', '//r(sqrt(t%hi2))//']},'//nl
+      text = text//'  "pair_table": {"requested_rel_error": '//json_real(t%requested)// &
+           ', "segments_per_octave": '//int_str(int(2**t%bits, i8))//', "segments": '// &
+           int_str(int(t%n, i8))// &
+           ', "r_range": ['//json_real(sqrt(t%lo2))//', '//json_real(sqrt(t%hi2))//']},'//nl
     else
-      text = text//'  "pair_error_measured": {"requested_rel_error": '//r(t%requested)// &
-           ', "r_range": ['//r(sqrt(t%lo2))//', '//r(sqrt(t%hi2))//']},'//nl
+      text = text//'  "pair_error_measured": {"requested_rel_error": '//json_real(t%requested)// &
+           ', "r_range": ['//json_real(sqrt(t%lo2))//', '//json_real(sqrt(t%hi2))//']},'//nl
     end if
-  contains
-    function r(v) result(s)
-      real(dp), intent(in) :: v
-      character(len=:), allocatable :: s
-      character(len=32) :: buf
-      write(buf, '(es24.16e3)') v
-      s = trim(adjustl(buf))
-    end function r
-    function i(v) result(s)
-      integer, intent(in) :: v
-      character(len=:), allocatable :: s
-      character(len=16) :: buf
-      write(buf, '(i0)') v
-      s = trim(buf)
-    end function i
   end function table_json
 
 end module pair_table
