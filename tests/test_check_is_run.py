@@ -9,13 +9,9 @@ import pytest
 from pyorch import SceneError
 from pyorch.run import engine_executable
 from pyorch.scene import Scene, validate
+from engine_cli import partsim
 
 ROOT = Path(__file__).resolve().parents[1]
-
-
-def partsim(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([str(engine_executable()), *args], capture_output=True, text=True,
-                          errors="replace", timeout=120)
 
 
 def test_a_start_grid_closer_than_min_distance_is_refused_at_check_naming_the_placement(tmp_path):

@@ -19,6 +19,7 @@ import pytest
 from pyorch import RunError, SceneError
 from pyorch.run import engine_executable, resume, run
 from pyorch.scene import Scene, parse_override, resolve_file, validate
+from engine_cli import one_error_line, partsim
 
 ROOT = Path(__file__).resolve().parents[1]
 FILES = ("piston.dat", "particles.dat", "mean_distance.dat", "energy.dat")
@@ -34,24 +35,12 @@ SMALL = {"particles.n": 60, "cell.width": 16.0, "cell.height": 20.0, "protocol.h
 LONG = dict(SMALL, **{"protocol.t_relax": 150.0, "output.frame_every": 1000})
 
 
-def partsim(*args: str, **kw) -> subprocess.CompletedProcess:
-    return subprocess.run([str(engine_executable()), *args], capture_output=True, text=True,
-                          timeout=120, **kw)
-
-
 def scene_file(path: Path, overrides: dict) -> Path:
     return Scene.read(ROOT / "runs/demo.nml").with_overrides(overrides).write(path)
 
 
 def dat_bytes(d: Path) -> dict[str, bytes]:
     return {n: (d / n).read_bytes() for n in FILES if (d / n).is_file()}
-
-
-def one_error_line(stderr: str, prefix: str = "partsim: error: ") -> str:
-    lines = stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith(prefix), stderr
-    assert "Traceback" not in stderr and "Fortran runtime" not in stderr
-    return lines[0][len(prefix):]
 
 
 @pytest.fixture(scope="module")

@@ -7,7 +7,6 @@ the key are refused naming it and the allowed values."""
 from __future__ import annotations
 
 import json
-import subprocess
 from pathlib import Path
 from typing import Any
 
@@ -16,10 +15,11 @@ import pandas as pd
 import pytest
 
 from pyorch import RunError, SceneError, dla, io
-from pyorch.run import engine_executable, resume, run
+from pyorch.run import resume, run
 from pyorch.scene import Scene
 from pyorch.trajectory import Trajectory, open_run, read_binary_header
 from pyorch.bed import readers as bed_readers
+from engine_cli import partsim
 
 ROOT = Path(__file__).resolve().parents[1]
 BED = {"particles.n": 120, "cell.width": 24.0, "cell.height": 30.0, "protocol.h_start": 30.0,
@@ -30,11 +30,6 @@ BED = {"particles.n": 120, "cell.width": 24.0, "cell.height": 30.0, "protocol.h_
        "integration.r_cut": 6.0, "integration.tail": "frozen", "integration.tail_every": 50}
 DLA = {"box.lx": 20.0, "box.ly": 20.0, "disks.count": 60, "run.t_end": 20.0, "run.tick": 0.1,
        "output.frame_every": 10, "output.history_every": 10, "output.checkpoint_every": 50}
-
-
-def partsim(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([str(engine_executable()), *args], capture_output=True, text=True,
-                          timeout=120)
 
 
 def _scene(base: str, over: dict[str, Any], path: Path) -> Path:

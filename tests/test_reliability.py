@@ -3,11 +3,9 @@ clear diagnostics, numerical extremes (user rule 2)."""
 from __future__ import annotations
 
 import json
-import os
 import random
 import signal
 import subprocess
-import time
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +13,7 @@ import pytest
 
 from pyorch import RunError, io
 from pyorch.run import engine_executable, resume, run
+from engine_cli import partsim
 
 FILES = ("piston.dat", "particles.dat", "mean_distance.dat", "energy.dat")
 SMALL = {"particles.n": 120, "cell.width": 24.0, "cell.height": 30.0, "protocol.h_start": 30.0,
@@ -23,11 +22,6 @@ SMALL = {"particles.n": 120, "cell.width": 24.0, "cell.height": 30.0, "protocol.
          "output.frame_every": 250, "output.distance_every": 50, "output.energy_every": 100,
          "output.checkpoint_every": 500, "integration.neighbour": "verlet",
          "integration.r_cut": 6.0, "integration.tail": "frozen", "integration.tail_every": 50}
-
-
-def partsim(*args: str, **kw) -> subprocess.CompletedProcess:
-    return subprocess.run([str(engine_executable()), *args], capture_output=True, text=True,
-                          timeout=120, **kw)
 
 
 @pytest.fixture(scope="module")

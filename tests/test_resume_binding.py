@@ -11,15 +11,15 @@ from __future__ import annotations
 import hashlib
 import json
 import shutil
-import subprocess
 from pathlib import Path
 from typing import Any
 
 import pytest
 
 from pyorch import RunError
-from pyorch.run import engine_executable, resume, run
+from pyorch.run import resume, run
 from pyorch.scene import Scene
+from engine_cli import one_error_line, partsim
 
 ROOT = Path(__file__).resolve().parents[1]
 RUNS = ROOT / "runs"
@@ -36,17 +36,6 @@ KINDS: dict[str, tuple[str, dict[str, Any], str, int]] = {
                                "output.energy_every": 50, "output.checkpoint_every": 250,
                                "output.frames_format": "both"}, "particles.seed", 333),
 }
-
-
-def partsim(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([str(engine_executable()), *args], capture_output=True, text=True,
-                          timeout=120)
-
-
-def one_error_line(stderr: str) -> str:
-    lines = stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("partsim: error: "), stderr
-    return lines[0][len("partsim: error: "):]
 
 
 def scene(kind: str, tmp: Path, seed: int = 1) -> Path:

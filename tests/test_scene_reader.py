@@ -17,6 +17,7 @@ import pytest
 
 from pyorch.run import engine_executable
 from pyorch.scene import Scene, schema
+from engine_cli import partsim
 
 ROOT = Path(__file__).resolve().parents[1]
 BASE = {"magnet_bed": "demo.nml", "oscillator": "oscillator.nml", "dla": "dla.nml",
@@ -24,11 +25,6 @@ BASE = {"magnet_bed": "demo.nml", "oscillator": "oscillator.nml", "dla": "dla.nm
 KINDS = sorted(BASE)
 CRASH_MARKS = ("Fortran runtime error", "Backtrace", "SIGSEGV", "Cannot match namelist",
                "Program received signal")
-
-
-def partsim(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([str(engine_executable()), *args], capture_output=True, text=True,
-                          errors="replace", timeout=60)
 
 
 def refused(tmp: Path, text: str, pattern: str) -> str:

@@ -8,7 +8,6 @@ that cannot be created is reported with the system's reason (read-only file syst
 directory, ...) on both doors."""
 from __future__ import annotations
 
-import json
 import re
 import subprocess
 from pathlib import Path
@@ -17,8 +16,9 @@ import numpy as np
 import pytest
 
 from pyorch import RunError, SceneError
-from pyorch.run import engine_executable, run
+from pyorch.run import run
 from pyorch.scene import Scene
+from engine_cli import one_error_line, partsim
 
 ROOT = Path(__file__).resolve().parents[1]
 OSC = ROOT / "runs" / "oscillator.nml"
@@ -27,17 +27,6 @@ OSC = ROOT / "runs" / "oscillator.nml"
 EULER = {"oscillator.integrator": "euler", "oscillator.dt": 1.0, "oscillator.t_end": 1000.0,
          "output.energy_every": 10, "output.trajectory_every": 100}
 NON_FINITE = re.compile(rb"(?i)(^|\s)[+-]?(nan|inf|infinity)(\s|$)")
-
-
-def partsim(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([str(engine_executable()), *args], capture_output=True, text=True,
-                          timeout=120)
-
-
-def one_error_line(stderr: str) -> str:
-    lines = stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("partsim: error: "), stderr
-    return lines[0][len("partsim: error: "):]
 
 
 # ---- issue 25.4: nothing non-finite is written -------------------------------------------
