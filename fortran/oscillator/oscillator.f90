@@ -45,6 +45,7 @@ module oscillator
     character(len=name_len) :: integrator = 'velocity_verlet'
     real(dp) :: dt = 1.0e-2_dp              !< time step [tau]
     real(dp) :: t_end = 10.0_dp             !< run length [tau]
+    real(dp) :: target_rel_error = 0        !< read by pyorch (trade table), ignored here
     ! &output (cadences in steps, 0 = file off)
     integer(i8) :: trajectory_every = 10
     integer(i8) :: energy_every = 10
@@ -84,6 +85,9 @@ contains
          hi=1.0e12_dp)
     call s%key('t_end', self%t_end, 'tau', 'run length', lo=0.0_dp, hi=1.0e12_dp, &
          lo_open=.true.)
+    call s%key('target_rel_error', self%target_rel_error, '1', 'read by pyorch: the '// &
+         'cheapest measured integrator and dt meeting it (0 = off; the engine ignores it)', &
+         lo=0.0_dp, hi=1.0_dp)
     call s%group('output', 'cadences in steps (0 = file off)')
     call s%key('trajectory_every', self%trajectory_every, 'steps', 'trajectory.dat rows '// &
          '(0 = off)', lo=0_i8, hi=max_steps_all)
