@@ -53,6 +53,17 @@ def main_bench(args: Any) -> int:
 
     kind = trade.check_kind(getattr(args, "kind", None), args.what)
     if kind is not None:
+        bed_only = [f"--{k}" for k in ("scene", "workers", "reuse")
+                    if getattr(args, k, None) is not None]
+        if bed_only:
+            what = "is an option" if len(bed_only) == 1 else "are options"
+            raise SceneError(f"pyorch bench trade --kind {kind}: {', '.join(bed_only)} {what} "
+                             f"of the bed's study only (each kind's study has its own scene "
+                             f"and runs one engine at a time)")
         return trade.main_trade(kind, out, getattr(args, "quick", False), args.seeds)
+    if getattr(args, "scene", None) is None:
+        args.scene = Path("runs/bench_compression.nml")
+    if getattr(args, "workers", None) is None:
+        args.workers = 1
     bed = importlib.import_module(kinds.get("magnet_bed").package + ".trade_report")
     return int(bed.main_bed(args, out))

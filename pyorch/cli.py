@@ -10,7 +10,7 @@
     pyorch analyze RUN_DIR [--out DIR]
     pyorch bench trade|bias|seeds [--scene S] [--seeds N] [--quick] [--workers W]
                  [--out DIR | --update-shipped]
-    pyorch bench trade --kind lj_box|rods|dla [--seeds N] [--quick] [--out DIR | --update-shipped]
+    pyorch bench trade --kind lj_box|rods|dla|oscillator [--seeds N] [--quick] [--out DIR | --update-shipped]
     pyorch sweep SWEEP.toml [--workers N] [--scheduler ADDR] [--cluster local|slurm]
     pyorch dataset gns SPEC.toml [--workers N] [--scheduler ADDR] [--dry-run]
     pyorch dataset check DATASET_DIR
@@ -98,14 +98,16 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("what", choices=["trade", "bias", "seeds"],
                    help="trade: every knob; bias: bias vs r_c; seeds: seed-averaged bias of "
                         "the production settings with standard errors")
-    b.add_argument("--scene", type=Path, default=Path("runs/bench_compression.nml"))
+    b.add_argument("--scene", type=Path, default=None,
+                   help="the bed's study scene (default runs/bench_compression.nml)")
     b.add_argument("--kind", default=None,
-                   help="trade: the kind's own studies (lj_box, rods, dla; default the bed's), "
-                        "each on its own scene (--scene, --workers and --reuse are the bed's)")
+                   help="trade: the kind's own studies (lj_box, rods, dla, oscillator; default "
+                        "the bed's), each on its own scene (--scene, --workers and --reuse are "
+                        "the bed's: refused with --kind)")
     b.add_argument("--seeds", type=int, default=None,
                    help="seeds per setting (default 3 for the bed, the study's own for a kind)")
     b.add_argument("--quick", action="store_true", help="4 settings only (smoke test)")
-    b.add_argument("--workers", type=int, default=1,
+    b.add_argument("--workers", type=int, default=None,
                    help="engine processes at once (errors only: times are then contended)")
     b.add_argument("--reuse", type=Path, default=None,
                    help="rows CSV of an earlier study of the scene: completed runs are kept")

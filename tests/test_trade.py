@@ -216,6 +216,9 @@ def test_kind_trade_writes_beside_the_runs(tmp_path, monkeypatch, capsys):
 @pytest.mark.parametrize("argv, says", [
     (["bench", "bias", "--kind", "rods"], "--kind is for 'trade' only"),
     (["bench", "trade", "--kind", "nope"], "&scene kind = 'nope': allowed"),
+    (["bench", "trade", "--kind", "oscillator", "--scene", "x.nml"], "--scene is an option of the bed's study only"),
+    (["bench", "trade", "--kind", "rods", "--workers", "2", "--reuse", "r.csv"],
+     "--workers, --reuse are options of the bed's study only"),
     (["bench", "trade", "--kind", "rods", "--quick", "--update-shipped"], "--quick measures"),
 ])
 def test_bad_kind_requests_are_refused(argv, says, tmp_path, monkeypatch, capsys):
@@ -321,3 +324,13 @@ def test_the_run_time_estimate_uses_the_cost_the_choice_compares():
     assert bench.run_time_estimate(row, 736, 1000) == pytest.approx(1e-5 * 2 * 1000)
     row_all = pd.Series(dict(neighbour="all_pairs", time_per_step_s=3e-5, cpu_per_step_s=float("nan")))
     assert bench.run_time_estimate(row_all, 736, 1000) == pytest.approx(3e-5 * 4 * 1000)
+
+
+def test_pareto_plot_ranks_by_cpu_time_where_measured():
+    """The bed's Pareto plot used wall time while the choice ranks by CPU time: a row measured
+    at a high load (wall 3x its CPU) is placed by its CPU time; a row without one by its wall."""
+    from pyorch.bed.trade_report import plot_cost
+
+    t = pd.DataFrame({"time_per_step_s": [3e-5, 2e-5], "cpu_per_step_s": [1e-5, np.nan]})
+    assert list(plot_cost(t)) == [1e-5, 2e-5]
+    assert list(plot_cost(t.drop(columns="cpu_per_step_s"))) == [3e-5, 2e-5]
