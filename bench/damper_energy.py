@@ -21,7 +21,14 @@ Then the viscous budget on the chosen path: with gamma = 0.05 the energy lost
 between release and the end must equal the viscous work
 W = int 2 gamma E_kin dt (trapezoid on energy.dat written every step).
 
-Writes bench/results/damper_energy.csv; run directories in bench/out/damper_energy/.
+With ``--pair-eval exact single rsqrt table`` every path is measured with each evaluation of
+the dipole law (``&integration pair_eval``, issue 27 item 1: the energy drift of the damper
+scene with the cheaper arithmetic), e.g.
+
+    OMP_NUM_THREADS=1 .venv/bin/python bench/damper_energy.py --paths "all pairs" \
+        --pair-eval exact single rsqrt table --no-budget --csv damper_energy_eval.csv
+
+Writes bench/results/damper_energy.csv (``--csv``); run directories in bench/out/damper_energy/.
 """
 from __future__ import annotations
 
@@ -70,11 +77,35 @@ def viscous_budget(energy: pd.DataFrame, gamma: float, t_release: float) -> dict
     return {"lost": lost, "viscous_work": work, "rel_mismatch": abs(lost - work) / work}
 
 
+def measure_path(base: Scene, common: dict[str, Any], name: str, ev: str, out: Path,
+                 t_relax: float) -> dict[str, Any]:
+    """Drift at dt 2e-3 and 1e-3 T of one force path with one pair evaluation; its row."""
+    label = name if ev == "exact" else f"{name}, pair_eval {ev}"
+    row: dict[str, Any] = {"path": label, "pair_eval": ev}
+    for dt in (2e-3, 1e-3):
+        ov = dict(common, **PATHS[name], **{"integration.dt": dt, "integration.pair_eval": ev,
+                                            "output.energy_every": int(round(0.02 / dt))})
+        slug = label.replace(" ", "_").replace(",", "").replace(".", "")
+        r = run(base.with_overrides(ov), out / f"{slug}_dt{dt:g}", progress=False, threads=1)
+        row[f"drift_dt{dt:g}"] = energy_drift(r.energy(), t_relax)
+        if dt == 2e-3:
+            row["us_per_step"] = 1e6 * float(r.meta["wall_time_per_step_s"])
+            row["pair_max_rel_error"] = r.meta.get("pair_max_rel_error", 0.0)
+    row["ratio"] = row["drift_dt0.002"] / row["drift_dt0.001"]
+    print(f"{label:46s} drift {row['drift_dt0.002']:.4g} -> {row['drift_dt0.001']:.4g} "
+          f"m1 g D1, ratio {row['ratio']:.2f}, {row['us_per_step']:.0f} us/step", flush=True)
+    return row
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--t-free", type=float, default=60.0, help="free phase [T]")
     ap.add_argument("--paths", nargs="*", default=list(PATHS), help="force paths to measure")
     ap.add_argument("--budget-path", default="all pairs", help="path of the viscous budget run")
+    ap.add_argument("--pair-eval", nargs="*", default=["exact"],
+                    help="evaluations of the dipole law (&integration pair_eval) to measure")
+    ap.add_argument("--no-budget", action="store_true", help="skip the viscous budget run")
+    ap.add_argument("--csv", default="damper_energy.csv", help="table in bench/results/")
     args = ap.parse_args(argv)
     base = Scene.read(SCENE)
     t_relax = 10.0
@@ -85,19 +116,11 @@ def main(argv: list[str] | None = None) -> int:
     out = OUT / "damper_energy"
     rows = []
     for name in args.paths:
-        row: dict[str, Any] = {"path": name}
-        for dt in (2e-3, 1e-3):
-            ov = dict(common, **PATHS[name], **{"integration.dt": dt,
-                                                "output.energy_every": int(round(0.02 / dt))})
-            slug = name.replace(" ", "_").replace(",", "").replace(".", "")
-            r = run(base.with_overrides(ov), out / f"{slug}_dt{dt:g}", progress=False, threads=1)
-            row[f"drift_dt{dt:g}"] = energy_drift(r.energy(), t_relax)
-            if dt == 2e-3:
-                row["us_per_step"] = 1e6 * float(r.meta["wall_time_per_step_s"])
-        row["ratio"] = row["drift_dt0.002"] / row["drift_dt0.001"]
-        rows.append(row)
-        print(f"{name:36s} drift {row['drift_dt0.002']:.4g} -> {row['drift_dt0.001']:.4g} "
-              f"m1 g D1, ratio {row['ratio']:.2f}, {row['us_per_step']:.0f} us/step", flush=True)
+        for ev in args.pair_eval:
+            rows.append(measure_path(base, common, name, ev, out, t_relax))
+    if args.no_budget:
+        save_table(pd.DataFrame(rows), args.csv)
+        return 0
     gamma = 0.05
     ov = dict(common, **PATHS[args.budget_path], **{"physics.viscous_gamma": gamma,
                                                     "output.energy_every": 1})
@@ -106,7 +129,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"viscous budget ({args.budget_path}, gamma {gamma}): lost {b['lost']:.6g}, "
           f"viscous work {b['viscous_work']:.6g} m1 g D1, mismatch {b['rel_mismatch']:.2e}")
     rows.append({"path": f"viscous budget: {args.budget_path}", **b})
-    save_table(pd.DataFrame(rows), "damper_energy.csv")
+    save_table(pd.DataFrame(rows), args.csv)
     return 0
 
 
