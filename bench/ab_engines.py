@@ -141,8 +141,8 @@ def grid_rows(a_exe: str, b_exe: str, points: list[str], evaluations: list[str],
             per = {"a": [], "b": []}
             for k in range(repeat):
                 for tag, exe in (("a", a_exe), ("b", b_exe)):
-                    c1 = one(exe, one_step, tmp / f"{tag}1_{k}")[1]
-                    cs = one(exe, s_steps, tmp / f"{tag}S_{k}")[1] * steps
+                    c1 = one(exe, one_step, tmp / f"{one_step.stem}_{tag}{k}")[1]
+                    cs = one(exe, s_steps, tmp / f"{s_steps.stem}_{tag}{k}")[1] * steps
                     per[tag].append((cs - c1) / (steps - 1))
             speed = [ta / tb for ta, tb in zip(per["a"], per["b"])]
             rows.append({"point": point, "pair_eval": ev, "steps": steps,
