@@ -17,6 +17,15 @@ this checkout's engine, so an older executable reads it too: give it a scene bot
 
 ``--kinds`` adds one scene of every other kind (this checkout's runs/, patched the same way),
 each writing rows or frames at a high cadence, so the write path is timed too.
+
+``--grid-points N:RC ...`` times instead the bed scenes of ``lammps_compare.py --grid`` (the same
+system, steps 2e7/N clipped to 50..1000) with each ``--pair-eval``: per engine and repeat a 1-step
+and an S-step run, the CPU time per step with the set-up subtracted, (cpu_S - cpu_1)/(S - 1),
+A and B interleaved; the table gives the median B/A speed (A time / B time) over the repeats
+and its spread (min, max). Output: bench/results/ab_grid.csv (or ``--csv``).
+
+    .venv/bin/python bench/ab_engines.py --a /tmp/old/partsim --b .venv/bin/partsim \
+        --repeat 5 --grid-points 2000:3 100000:3 --pair-eval exact single
 """
 from __future__ import annotations
 
@@ -107,6 +116,44 @@ def per_step_instructions(exe: str, scene: Path, over: dict, tmp: Path, tag: str
     return (counts[1] - counts[0]) / round(2.0 / dt)
 
 
+def grid_scenes(point: str, evaluation: str, tmp: Path) -> tuple[Path, Path, int]:
+    """The 1-step and S-step scene files of one lammps_compare grid point "N:RC" with the pair
+    evaluation ``evaluation``, and S."""
+    import lammps_compare as lc
+
+    n_text, rc_text = point.split(":")
+    n, r_cut = int(n_text), float(rc_text)
+    steps = int(min(1000, max(50, 2.0e7 / n)))
+    sc = lc.bench_scene(n, 1.6, r_cut, 1.0, 1.0e-3, steps, 0, 1).with_overrides(
+        {"integration.pair_eval": evaluation})
+    tag = f"grid_{n}_{r_cut:g}_{evaluation}"
+    one_step = common.with_steps(sc, 1, 1.0e-3).write(tmp / f"{tag}_1.nml")
+    return one_step, sc.write(tmp / f"{tag}_S.nml"), steps
+
+
+def grid_rows(a_exe: str, b_exe: str, points: list[str], evaluations: list[str], repeat: int,
+              tmp: Path) -> list[dict]:
+    """Interleaved set-up-subtracted CPU time per step [s] of A and B on the grid points."""
+    rows = []
+    for point in points:
+        for ev in evaluations:
+            one_step, s_steps, steps = grid_scenes(point, ev, tmp)
+            per = {"a": [], "b": []}
+            for k in range(repeat):
+                for tag, exe in (("a", a_exe), ("b", b_exe)):
+                    c1 = one(exe, one_step, tmp / f"{one_step.stem}_{tag}{k}")[1]
+                    cs = one(exe, s_steps, tmp / f"{s_steps.stem}_{tag}{k}")[1] * steps
+                    per[tag].append((cs - c1) / (steps - 1))
+            speed = [ta / tb for ta, tb in zip(per["a"], per["b"])]
+            rows.append({"point": point, "pair_eval": ev, "steps": steps,
+                         "A_median_cpu_us_per_step": 1e6 * statistics.median(per["a"]),
+                         "B_median_cpu_us_per_step": 1e6 * statistics.median(per["b"]),
+                         "B_speed_median": statistics.median(speed),
+                         "B_speed_min": min(speed), "B_speed_max": max(speed),
+                         "repeats": repeat, "machine": common.machine_line()})
+    return rows
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -118,8 +165,19 @@ def main() -> None:
                     help="count instructions per step with callgrind instead of timing")
     ap.add_argument("--kinds", action="store_true",
                     help="also time one row-heavy scene of every other kind (KIND_SCENES)")
+    ap.add_argument("--grid-points", nargs="+", default=None, metavar="N:RC",
+                    help="time lammps_compare's grid scenes instead (set-up subtracted)")
+    ap.add_argument("--pair-eval", nargs="+", default=["exact"],
+                    help="--grid-points: the pair evaluations")
+    ap.add_argument("--csv", default=None, help="bench/results/ name of the table")
     args = ap.parse_args()
     rows = []
+    if args.grid_points:
+        with tempfile.TemporaryDirectory() as tmp:
+            rows = grid_rows(args.a, args.b, args.grid_points, args.pair_eval, args.repeat,
+                             Path(tmp))
+        common.save_table(pd.DataFrame(rows), args.csv or "ab_grid.csv")
+        return
     if args.instructions:
         with tempfile.TemporaryDirectory() as tmp:
             for k, (label, (base, over)) in enumerate(SCENES.items()):

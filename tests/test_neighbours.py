@@ -204,16 +204,16 @@ def test_tail_switch_default_is_one_for_linear_and_sharp_for_frozen(door, make_s
 
 
 def test_ranges_give_the_cells_forces_under_adversarial_motion(door, make_scene, api):
-    """Long rows (>= 10 listed pairs per row) go through the contiguous ranges of j, which also
+    """Long rows (>= 48 listed pairs per row) go through the contiguous ranges of j, which also
     hold unlisted j that the r_c test masks out. After every step of the adversarial motion
     above, with the list as old as the Verlet rule lets it get, the forces equal those of the
     'cells' strategy (pairs within r_c found afresh, through the flat pair loop) at the same
     positions: no pair within r_c missed, none beyond it counted."""
-    ov = dict(BOX, **{"integration.r_cut": 6.0, "integration.skin": 2.0,
+    ov = dict(BOX, **{"integration.r_cut": 9.0, "integration.skin": 2.0,
                       "physics.gravity": False, "physics.dry_friction": "none",
                       "material.remanence": 0.05, "integration.dt": 2e-3,
                       "cell.width": 60.0, "cell.height": 60.0, "protocol.h_start": 60.0,
-                      "particles.fill_height": 60.0, "particles.n": 400,
+                      "particles.fill_height": 60.0, "particles.n": 1600,
                       "physics.wall_law": "infinite", "physics.min_distance": 0.0})
     d = door(make_scene("demo", dict(ov, **{"integration.neighbour": "verlet"})))
     s = d.state()
@@ -230,7 +230,7 @@ def test_ranges_give_the_cells_forces_under_adversarial_motion(door, make_scene,
             seen.append((st["x"], st["y"], fx, fy))
     _, builds, pairs = api.list_audit()
     assert builds >= 3
-    assert pairs >= 10 * d.n                 # the ranges path
+    assert pairs >= 48 * d.n                 # the ranges path
     c = door(make_scene("demo", dict(ov, **{"integration.neighbour": "cells"})))
     worst = 0.0
     for x, y, fx, fy in seen:

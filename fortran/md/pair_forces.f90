@@ -43,8 +43,11 @@ module pair_forces
   integer, parameter :: mode_all = 1, mode_list = 2
   !> Mean listed pairs per row from which dipole lists go row by row (rows_list) instead of as
   !> one flat pair sequence (rows_pairs), and from which they go by contiguous ranges of j
-  !> (rows_ranges, when the list has ranges); bench/RESULTS.md section 26
-  real(dp), parameter :: mid_row_pairs = 8, long_row_pairs = 10
+  !> (rows_ranges, when the list has ranges; never with pair_eval = 'single'). 10 on the
+  !> AVX-512 Xeon of bench/RESULTS.md section 26; 48 on the AVX2 EPYC of section 35.6, where
+  !> the rows measured 1.26-1.33x the ranges at 15 pairs per row, 1.05x at 35, 1.0x at 61
+  !> (exact; single 1.3-1.8x at every length)
+  real(dp), parameter :: mid_row_pairs = 8, long_row_pairs = 48
   !> Lanes of the contiguous dipole loops (dipole_ranges): the sums on i are kept in this many
   !> fixed lanes (j = j0 + l - 1 goes to lane l), so the loop vectorises without reordering a
   !> floating-point sum; the order depends on the lane count only, never on the machine
@@ -935,9 +938,11 @@ contains
       work = real(start(n + 1) - 1, dp)
     end if
     ! dipole lists: the flat pair sequence when rows are short, row by row in between, by
-    ! ranges when they are long (bench/RESULTS.md section 26)
+    ! ranges when they are long (bench/RESULTS.md sections 26, 35.6); single precision row by
+    ! row (its 8-lane range loop measured 0.6-0.8x the rows on the AVX2 EPYC)
     mid_rows = work >= mid_row_pairs*real(max(1, n), dp)
     long_rows = work >= long_row_pairs*real(max(1, n), dp) .and. present(rstart)
+    if (present(tab)) long_rows = long_rows .and. tab%eval /= eval_single
     !$ if (work >= 5.0e4_dp) nt = min(omp_get_max_threads(), 64)
     r2low = huge(1.0_dp)
     if (kernel == kernel_dipole .and. (mode == mode_all .or. long_rows)) call range_buffers(n)
