@@ -17,6 +17,15 @@ this checkout's engine, so an older executable reads it too: give it a scene bot
 
 ``--kinds`` adds one scene of every other kind (this checkout's runs/, patched the same way),
 each writing rows or frames at a high cadence, so the write path is timed too.
+
+``--lj N [N ...]`` times (or, with ``--instructions``, counts) the lj_box step on
+bench/lj_lammps.py's liquid of N particles (its defaults: area fraction 0.35, skin 0.6 a,
+velocity Verlet, dt 1e-3 T), the set-up removed: per step = (cost of --lj-steps steps - cost
+of 1 step) / (--lj-steps - 1), the four runs of a repeat interleaved A, B, A, B. Output:
+bench/results/ab_lj.csv (ab_lj_instructions.csv).
+
+    .venv/bin/python bench/ab_engines.py --a /tmp/main/partsim --b .venv/bin/partsim \
+        --lj 2000 10000 40000 --repeat 5
 """
 from __future__ import annotations
 
@@ -107,6 +116,45 @@ def per_step_instructions(exe: str, scene: Path, over: dict, tmp: Path, tag: str
     return (counts[1] - counts[0]) / round(2.0 / dt)
 
 
+def lj_scene(n: int, steps: int, out: Path) -> Path:
+    """bench/lj_lammps.py's liquid of n particles at its default settings, run for steps,
+    written to out (every key resolved by this checkout's engine)."""
+    import lj_lammps
+
+    a = lj_lammps.parse_args([])
+    sc, _ = lj_lammps.scene(n, a.phi, steps, a.dt, a.skin, a.seed)
+    return sc.write(out)
+
+
+def lj_rows(a_exe: str, b_exe: str, ns: list[int], steps: int, repeat: int, count: bool,
+            tmp: Path) -> list[dict]:
+    """Per-step CPU seconds (or instructions, count) of the lj_box step of A and B at each
+    N, set-up removed (a run of `steps` minus a run of 1 step); the median and the spread of
+    the per-repeat speed-ups of B (A cost / B cost; > 1: B cheaper)."""
+    rows = []
+    for n in ns:
+        scenes = {s: lj_scene(n, s, tmp / f"lj{n}_{s}.nml") for s in (1, steps)}
+        per: dict[str, list[float]] = {"a": [], "b": []}
+        for k in range(1 if count else repeat):
+            cost: dict[tuple[str, int], float] = {}
+            for s in (steps, 1):
+                for tag, exe in (("a", a_exe), ("b", b_exe)):
+                    out = tmp / f"lj{n}_{tag}{s}_{k}"
+                    cost[tag, s] = (float(instructions(exe, scenes[s], out)) if count
+                                    else one(exe, scenes[s], out)[1] * s)
+            for tag in per:
+                per[tag].append((cost[tag, steps] - cost[tag, 1]) / (steps - 1))
+        ratios = [b / a for a, b in zip(per["a"], per["b"])]
+        unit = "instructions" if count else "cpu_s"
+        rows.append({"N": n, f"A_{unit}_per_step_median": statistics.median(per["a"]),
+                     f"B_{unit}_per_step_median": statistics.median(per["b"]),
+                     "B_speedup_median": 1 / statistics.median(ratios),
+                     "B_speedup_min": 1 / max(ratios), "B_speedup_max": 1 / min(ratios),
+                     "steps": steps, "repeats": len(ratios)})
+        print(rows[-1], flush=True)
+    return rows
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -118,8 +166,18 @@ def main() -> None:
                     help="count instructions per step with callgrind instead of timing")
     ap.add_argument("--kinds", action="store_true",
                     help="also time one row-heavy scene of every other kind (KIND_SCENES)")
+    ap.add_argument("--lj", type=int, nargs="+", default=None, metavar="N",
+                    help="only the lj_box step on bench/lj_lammps.py's liquid of N particles")
+    ap.add_argument("--lj-steps", type=int, default=1000, help="steps of the long --lj run")
     args = ap.parse_args()
     rows = []
+    if args.lj:
+        with tempfile.TemporaryDirectory() as tmp:
+            rows = lj_rows(args.a, args.b, args.lj, args.lj_steps, args.repeat,
+                           args.instructions, Path(tmp))
+        name = "ab_lj_instructions.csv" if args.instructions else "ab_lj.csv"
+        print(common.save_table(pd.DataFrame(rows), name))
+        return
     if args.instructions:
         with tempfile.TemporaryDirectory() as tmp:
             for k, (label, (base, over)) in enumerate(SCENES.items()):

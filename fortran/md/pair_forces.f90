@@ -230,13 +230,17 @@ contains
 
   !> p = 6 above r_m (no sqrt, no branch: vectorises); r2 at or below r_m^2 is evaluated at
   !> r_m (lj_chunk fixes those pairs up with the core force).
+  !> The cut-off's 0/1 factor is computed first, on its own line: written inside the product,
+  !> GCC 12 makes a branch of it with AVX2 (no masks) and none of the loops calling these
+  !> kernels vectorises ("control flow in loop"; the same numbers either way).
   pure elemental subroutine lj6_kernel(c4p, rm2, rc2, r2, s)
     real(dp), intent(in) :: c4p, rm2, rc2, r2
     real(dp), intent(out) :: s
-    real(dp) :: w, q
+    real(dp) :: w, q, on
+    on = merge(1.0_dp, 0.0_dp, r2 < rc2)
     w = 4.0_dp/max(r2, rm2)
     q = w*w*w
-    s = 0.25_dp*c4p*w*(2*q*q - q)*merge(1.0_dp, 0.0_dp, r2 < rc2)
+    s = 0.25_dp*c4p*w*(2*q*q - q)*on
   end subroutine lj6_kernel
 
   !> lj6_kernel in single precision (pair_eval = 'single'; the factor returned in double).
@@ -244,20 +248,23 @@ contains
     real(dp), intent(in) :: c4p, rm2, rc2, r2
     real(dp), intent(out) :: s
     real(sp) :: w, q
+    real(dp) :: on
+    on = merge(1.0_dp, 0.0_dp, r2 < rc2)   ! first (see lj6_kernel)
     w = 4.0_sp/real(max(r2, rm2), sp)
     q = w*w*w
-    s = real(0.25_sp*real(c4p, sp)*w*(2*q*q - q), dp)*merge(1.0_dp, 0.0_dp, r2 < rc2)
+    s = real(0.25_sp*real(c4p, sp)*w*(2*q*q - q), dp)*on
   end subroutine lj6_kernel_sp
 
   !> lj6_kernel with 1/r^2 = rsqrt3(r^2)^2 (pair_eval = 'rsqrt'): no division.
   pure elemental subroutine lj6_kernel_rs(c4p, rm2, rc2, r2, s)
     real(dp), intent(in) :: c4p, rm2, rc2, r2
     real(dp), intent(out) :: s
-    real(dp) :: w, q
+    real(dp) :: w, q, on
+    on = merge(1.0_dp, 0.0_dp, r2 < rc2)   ! first (see lj6_kernel)
     w = rsqrt3(max(r2, rm2))
     w = 4.0_dp*w*w
     q = w*w*w
-    s = 0.25_dp*c4p*w*(2*q*q - q)*merge(1.0_dp, 0.0_dp, r2 < rc2)
+    s = 0.25_dp*c4p*w*(2*q*q - q)*on
   end subroutine lj6_kernel_rs
 
   !> The Lennard-Jones kernel of the law over a chunk of nk squared distances, by the
@@ -271,7 +278,7 @@ contains
     real(dp), intent(in) :: r2s(nk)
     real(dp), intent(out) :: cs(nk)
     type(pair_table_t), intent(in), optional :: tab   !< the law's evaluation
-    real(dp) :: c4p, rm2, rc2, lo2, hi2, d
+    real(dp) :: c4p, rm2, rc2, lo2, hi2, d, on
     integer :: m, shift, ev
     integer(i8) :: tn, base, k
     ev = eval_exact
@@ -285,9 +292,9 @@ contains
     case (eval_table)   ! the table between r_m and R; the core and the cut-off as below
       tn = tab%n; shift = tab%shift; base = tab%base; lo2 = tab%lo2; hi2 = tab%hi2
       do m = 1, nk
+        on = merge(1.0_dp, 0.0_dp, r2s(m) < rc2)   ! first (see lj6_kernel)
         call table_seg(r2s(m), lo2, hi2, tn, shift, base, k, d)
-        cs(m) = (tab%c(1, k) + d*(tab%c(2, k) + d*(tab%c(3, k) + d*tab%c(4, k))))* &
-             merge(1.0_dp, 0.0_dp, r2s(m) < rc2)
+        cs(m) = (tab%c(1, k) + d*(tab%c(2, k) + d*(tab%c(3, k) + d*tab%c(4, k))))*on
       end do
     case (eval_single)
       call lj6_kernel_sp(c4p, rm2, rc2, r2s, cs)
