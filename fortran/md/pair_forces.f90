@@ -808,9 +808,12 @@ contains
         end associate
       else
         call lj_chunk(l, nk, r2s, pw(:, 3), tab)
+        ! the forces on i (vectorised here; chunk_sums adds the rounded products as before)
+        pw(1:nk, 1) = pw(1:nk, 3)*pw(1:nk, 1)
+        pw(1:nk, 2) = pw(1:nk, 3)*pw(1:nk, 2)
       end if
       call chunk_sums(nk, own(k0:k0 + nk - 1), nbr(k0:k0 + nk - 1), hi_direct, &
-           kernel == kernel_dipole, pw, fx, fy, s3, sx, sy, ss, mu, wsin, k_pair)
+           kernel == kernel_dipole, pw, fx, fy, s3, sx, sy, ss, mu, wsin, k_pair, hi_direct >= n)
     end do
     r2low = low
   end subroutine rows_pairs
@@ -820,11 +823,15 @@ contains
   !> come in row order: no store-to-load chain through fx(i) from one pair to the next), the
   !> reaction on j directly (j <= hi_direct) or to the spill arrays. Dipole (scaled): the force
   !> factor is k mu_i mu_j cs, and s3(i) += wsin_j r3s, s3(j) += wsin_i r3s (mu_i and wsin_i
-  !> loaded once per row; r3s = 0 without the friction sums). Otherwise (Lennard-Jones) the factor is cs itself.
+  !> loaded once per row; r3s = 0 without the friction sums). Otherwise (Lennard-Jones) columns
+  !> 1, 2 hold the pair's force itself (rows_pairs multiplies them out, vectorised: here a
+  !> product inside the sums would be contracted into two fused multiply-adds, other bits), and
+  !> serially (all_direct) the reactions go without the test on hi_direct.
   subroutine chunk_sums(nk, own, nbr, hi_direct, scaled, pw, fx, fy, s3, sx, sy, ss, mu, &
-       wsin, k_pair)
+       wsin, k_pair, all_direct)
     integer, intent(in) :: nk, own(nk), nbr(nk), hi_direct
     logical, intent(in) :: scaled
+    logical, intent(in) :: all_direct   !< hi_direct >= n: every reaction direct
     !> per pair m: separations dx, dy (columns 1, 2), force factor cs (3), r^-3 r3s (4); one
     !> array (one base register in the scalar loop, which otherwise reloads four from the stack)
     real(dp), intent(in) :: pw(pair_chunk, 4)
@@ -866,6 +873,23 @@ contains
         end if
       end do
       s3(ic) = s3(ic) + a3
+    else if (all_direct) then   ! (serial: no spill, no test per pair)
+      do m = 1, nk
+        i = own(m)
+        j = nbr(m)
+        if (i /= ic) then
+          fx(ic) = fx(ic) + ax
+          fy(ic) = fy(ic) + ay
+          ic = i
+          ax = 0; ay = 0
+        end if
+        gx = pw(m, 1)
+        gy = pw(m, 2)
+        ax = ax + gx
+        ay = ay + gy
+        fx(j) = fx(j) - gx
+        fy(j) = fy(j) - gy
+      end do
     else
       do m = 1, nk
         i = own(m)
@@ -876,8 +900,8 @@ contains
           ic = i
           ax = 0; ay = 0
         end if
-        gx = pw(m, 3)*pw(m, 1)
-        gy = pw(m, 3)*pw(m, 2)
+        gx = pw(m, 1)
+        gy = pw(m, 2)
         ax = ax + gx
         ay = ay + gy
         if (j <= hi_direct) then
