@@ -62,8 +62,9 @@ contains
     real(dp), intent(in) :: x(n), y(n), lo, hi
     integer :: i, out
     out = 0
-    do i = 1, n
-      out = out + merge(0, 1, x(i) >= lo .and. x(i) <= hi .and. y(i) >= lo .and. y(i) <= hi)
+    do i = 1, n   ! four counts, not one .and. chain (GCC short-circuits that: no vectors)
+      out = out + merge(0, 1, x(i) >= lo) + merge(0, 1, x(i) <= hi) + merge(0, 1, y(i) >= lo) &
+           + merge(0, 1, y(i) <= hi)
     end do
     ok = out == 0
   end function all_inside
