@@ -26,6 +26,15 @@ and its spread (min, max). Output: bench/results/ab_grid.csv (or ``--csv``).
 
     .venv/bin/python bench/ab_engines.py --a /tmp/old/partsim --b .venv/bin/partsim \
         --repeat 5 --grid-points 2000:3 100000:3 --pair-eval exact single
+
+``--lj N [N ...]`` times (or, with ``--instructions``, counts) the lj_box step on
+bench/lj_lammps.py's liquid of N particles (its defaults: area fraction 0.35, skin 0.6 a,
+velocity Verlet, dt 1e-3 T), the set-up removed: per step = (cost of --lj-steps steps - cost
+of 1 step) / (--lj-steps - 1), the four runs of a repeat interleaved A, B, A, B. Output:
+bench/results/ab_lj.csv (ab_lj_instructions.csv).
+
+    .venv/bin/python bench/ab_engines.py --a /tmp/main/partsim --b .venv/bin/partsim \
+        --lj 2000 10000 40000 --repeat 5
 """
 from __future__ import annotations
 
@@ -116,6 +125,29 @@ def per_step_instructions(exe: str, scene: Path, over: dict, tmp: Path, tag: str
     return (counts[1] - counts[0]) / round(2.0 / dt)
 
 
+def setup_subtracted(a_exe: str, b_exe: str, one_step: Path, s_steps: Path, steps: int,
+                     repeat: int, count: bool, tmp: Path) -> dict[str, float]:
+    """Per-step cost of A and B with the set-up removed, (cost of S steps - cost of 1) / (S - 1):
+    CPU seconds (or instructions, ``count``: callgrind, one repeat), the runs of a repeat
+    interleaved A, B, A, B; the medians and the median and spread of B's speed-up (A cost / B
+    cost; > 1: B cheaper) over the repeats."""
+    per: dict[str, list[float]] = {"a": [], "b": []}
+    for k in range(1 if count else repeat):
+        cost: dict[tuple[str, int], float] = {}
+        for scene, s in ((s_steps, steps), (one_step, 1)):
+            for tag, exe in (("a", a_exe), ("b", b_exe)):
+                out = tmp / f"{scene.stem}_{tag}{k}"
+                cost[tag, s] = (float(instructions(exe, scene, out)) if count
+                                else one(exe, scene, out)[1] * s)
+        for tag in per:
+            per[tag].append((cost[tag, steps] - cost[tag, 1]) / (steps - 1))
+    speed = [a / b for a, b in zip(per["a"], per["b"])]
+    return {"A_per_step_median": statistics.median(per["a"]),
+            "B_per_step_median": statistics.median(per["b"]),
+            "B_speed_median": statistics.median(speed), "B_speed_min": min(speed),
+            "B_speed_max": max(speed), "repeats": len(speed)}
+
+
 def grid_scenes(point: str, evaluation: str, tmp: Path) -> tuple[Path, Path, int]:
     """The 1-step and S-step scene files of one lammps_compare grid point "N:RC" with the pair
     evaluation ``evaluation``, and S."""
@@ -133,24 +165,46 @@ def grid_scenes(point: str, evaluation: str, tmp: Path) -> tuple[Path, Path, int
 
 def grid_rows(a_exe: str, b_exe: str, points: list[str], evaluations: list[str], repeat: int,
               tmp: Path) -> list[dict]:
-    """Interleaved set-up-subtracted CPU time per step [s] of A and B on the grid points."""
+    """Interleaved set-up-subtracted CPU time per step of A and B on the grid points [us]."""
     rows = []
     for point in points:
         for ev in evaluations:
             one_step, s_steps, steps = grid_scenes(point, ev, tmp)
-            per = {"a": [], "b": []}
-            for k in range(repeat):
-                for tag, exe in (("a", a_exe), ("b", b_exe)):
-                    c1 = one(exe, one_step, tmp / f"{one_step.stem}_{tag}{k}")[1]
-                    cs = one(exe, s_steps, tmp / f"{s_steps.stem}_{tag}{k}")[1] * steps
-                    per[tag].append((cs - c1) / (steps - 1))
-            speed = [ta / tb for ta, tb in zip(per["a"], per["b"])]
+            r = setup_subtracted(a_exe, b_exe, one_step, s_steps, steps, repeat, False, tmp)
             rows.append({"point": point, "pair_eval": ev, "steps": steps,
-                         "A_median_cpu_us_per_step": 1e6 * statistics.median(per["a"]),
-                         "B_median_cpu_us_per_step": 1e6 * statistics.median(per["b"]),
-                         "B_speed_median": statistics.median(speed),
-                         "B_speed_min": min(speed), "B_speed_max": max(speed),
+                         "A_median_cpu_us_per_step": 1e6 * r["A_per_step_median"],
+                         "B_median_cpu_us_per_step": 1e6 * r["B_per_step_median"],
+                         **{k: r[k] for k in ("B_speed_median", "B_speed_min", "B_speed_max")},
                          "repeats": repeat, "machine": common.machine_line()})
+    return rows
+
+
+def lj_scene(n: int, steps: int, out: Path) -> Path:
+    """bench/lj_lammps.py's liquid of n particles at its default settings, run for steps,
+    written to out (every key resolved by this checkout's engine)."""
+    import lj_lammps
+
+    a = lj_lammps.parse_args([])
+    sc, _ = lj_lammps.scene(n, a.phi, steps, a.dt, a.skin, a.seed)
+    return sc.write(out)
+
+
+def lj_rows(a_exe: str, b_exe: str, ns: list[int], steps: int, repeat: int, count: bool,
+            tmp: Path) -> list[dict]:
+    """Per-step CPU seconds (or instructions, count) of the lj_box step of A and B at each
+    N, set-up removed; the median and the spread of B's speed-up."""
+    rows = []
+    for n in ns:
+        r = setup_subtracted(a_exe, b_exe, lj_scene(n, 1, tmp / f"lj{n}_1.nml"),
+                             lj_scene(n, steps, tmp / f"lj{n}_{steps}.nml"), steps, repeat,
+                             count, tmp)
+        unit = "instructions" if count else "cpu_s"
+        rows.append({"N": n, f"A_{unit}_per_step_median": r["A_per_step_median"],
+                     f"B_{unit}_per_step_median": r["B_per_step_median"],
+                     "B_speedup_median": r["B_speed_median"], "B_speedup_min": r["B_speed_min"],
+                     "B_speedup_max": r["B_speed_max"], "steps": steps,
+                     "repeats": r["repeats"]})
+        print(rows[-1], flush=True)
     return rows
 
 
@@ -170,6 +224,9 @@ def main() -> None:
     ap.add_argument("--pair-eval", nargs="+", default=["exact"],
                     help="--grid-points: the pair evaluations")
     ap.add_argument("--csv", default=None, help="bench/results/ name of the table")
+    ap.add_argument("--lj", type=int, nargs="+", default=None, metavar="N",
+                    help="only the lj_box step on bench/lj_lammps.py's liquid of N particles")
+    ap.add_argument("--lj-steps", type=int, default=1000, help="steps of the long --lj run")
     args = ap.parse_args()
     rows = []
     if args.grid_points:
@@ -177,6 +234,13 @@ def main() -> None:
             rows = grid_rows(args.a, args.b, args.grid_points, args.pair_eval, args.repeat,
                              Path(tmp))
         common.save_table(pd.DataFrame(rows), args.csv or "ab_grid.csv")
+        return
+    if args.lj:
+        with tempfile.TemporaryDirectory() as tmp:
+            rows = lj_rows(args.a, args.b, args.lj, args.lj_steps, args.repeat,
+                           args.instructions, Path(tmp))
+        name = "ab_lj_instructions.csv" if args.instructions else "ab_lj.csv"
+        print(common.save_table(pd.DataFrame(rows), args.csv or name))
         return
     if args.instructions:
         with tempfile.TemporaryDirectory() as tmp:

@@ -24,16 +24,22 @@ contains
     real(dp), intent(in) :: lo, hi, gamma
     integer(i8), intent(inout) :: hits
     integer, intent(out) :: escaped
-    integer :: i
+    integer, parameter :: block = 256   !< particles per vectorised test
+    integer :: i, b0, b1
     real(dp) :: sg
     sg = sqrt(gamma)
     escaped = 0
-    if (all_inside(n, x, y, lo, hi)) return   ! the usual step: one vectorised pass
-    do i = 1, n
-      if (x(i) < lo .or. x(i) > hi) call hit(x(i), ux(i), uy(i))
-      if (y(i) < lo .or. y(i) > hi) call hit(y(i), uy(i), ux(i))
-      if (escaped == 0 .and. .not. (x(i) >= lo .and. x(i) <= hi .and. y(i) >= lo .and. &
-           y(i) <= hi)) escaped = i
+    ! blocks of particles all inside (a vectorised test each) are left alone: a step with a few
+    ! hits runs the scalar loop over their blocks only (a particle inside stays inside)
+    do b0 = 1, n, block
+      b1 = min(n, b0 + block - 1)
+      if (all_inside(b1 - b0 + 1, x(b0:b1), y(b0:b1), lo, hi)) cycle
+      do i = b0, b1
+        if (x(i) < lo .or. x(i) > hi) call hit(x(i), ux(i), uy(i))
+        if (y(i) < lo .or. y(i) > hi) call hit(y(i), uy(i), ux(i))
+        if (escaped == 0 .and. .not. (x(i) >= lo .and. x(i) <= hi .and. y(i) >= lo .and. &
+             y(i) <= hi)) escaped = i
+      end do
     end do
   contains
     !> One wall hit along the coordinate c (normal velocity un, tangential ut).
@@ -56,8 +62,9 @@ contains
     real(dp), intent(in) :: x(n), y(n), lo, hi
     integer :: i, out
     out = 0
-    do i = 1, n
-      out = out + merge(0, 1, x(i) >= lo .and. x(i) <= hi .and. y(i) >= lo .and. y(i) <= hi)
+    do i = 1, n   ! four counts, not one .and. chain (GCC short-circuits that: no vectors)
+      out = out + merge(0, 1, x(i) >= lo) + merge(0, 1, x(i) <= hi) + merge(0, 1, y(i) >= lo) &
+           + merge(0, 1, y(i) <= hi)
     end do
     ok = out == 0
   end function all_inside

@@ -5,7 +5,8 @@
 !>
 !> Longer than 600 lines because the pair passes (all pairs, lists by flat pairs, rows and
 !> ranges of j, the far field, threaded with their reaction spill) and the law kernels they
-!> inline are one compilation unit: gfortran inlines only within a file (no LTO in this build);
+!> inline are one compilation unit: gfortran inlines reliably only within a file (the build links with LTO since
+!> RESULTS 32.2, but -Db_lto=false must stay as fast);
 !> the load-time builders of the evaluations are module pair_eval.
 !>
 !> Truncated strategies may shift the force (shift4 = r_c^-4) so that it
@@ -233,13 +234,17 @@ contains
 
   !> p = 6 above r_m (no sqrt, no branch: vectorises); r2 at or below r_m^2 is evaluated at
   !> r_m (lj_chunk fixes those pairs up with the core force).
+  !> The cut-off's 0/1 factor is computed first, on its own line: written inside the product,
+  !> GCC 12 makes a branch of it with AVX2 (no masks) and none of the loops calling these
+  !> kernels vectorises ("control flow in loop"; the same numbers either way).
   pure elemental subroutine lj6_kernel(c4p, rm2, rc2, r2, s)
     real(dp), intent(in) :: c4p, rm2, rc2, r2
     real(dp), intent(out) :: s
-    real(dp) :: w, q
+    real(dp) :: w, q, on
+    on = merge(1.0_dp, 0.0_dp, r2 < rc2)
     w = 4.0_dp/max(r2, rm2)
     q = w*w*w
-    s = 0.25_dp*c4p*w*(2*q*q - q)*merge(1.0_dp, 0.0_dp, r2 < rc2)
+    s = 0.25_dp*c4p*w*(2*q*q - q)*on
   end subroutine lj6_kernel
 
   !> lj6_kernel in single precision (pair_eval = 'single'; the factor returned in double).
@@ -247,20 +252,23 @@ contains
     real(dp), intent(in) :: c4p, rm2, rc2, r2
     real(dp), intent(out) :: s
     real(sp) :: w, q
+    real(dp) :: on
+    on = merge(1.0_dp, 0.0_dp, r2 < rc2)   ! first (see lj6_kernel)
     w = 4.0_sp/real(max(r2, rm2), sp)
     q = w*w*w
-    s = real(0.25_sp*real(c4p, sp)*w*(2*q*q - q), dp)*merge(1.0_dp, 0.0_dp, r2 < rc2)
+    s = real(0.25_sp*real(c4p, sp)*w*(2*q*q - q), dp)*on
   end subroutine lj6_kernel_sp
 
   !> lj6_kernel with 1/r^2 = rsqrt3(r^2)^2 (pair_eval = 'rsqrt'): no division.
   pure elemental subroutine lj6_kernel_rs(c4p, rm2, rc2, r2, s)
     real(dp), intent(in) :: c4p, rm2, rc2, r2
     real(dp), intent(out) :: s
-    real(dp) :: w, q
+    real(dp) :: w, q, on
+    on = merge(1.0_dp, 0.0_dp, r2 < rc2)   ! first (see lj6_kernel)
     w = rsqrt3(max(r2, rm2))
     w = 4.0_dp*w*w
     q = w*w*w
-    s = 0.25_dp*c4p*w*(2*q*q - q)*merge(1.0_dp, 0.0_dp, r2 < rc2)
+    s = 0.25_dp*c4p*w*(2*q*q - q)*on
   end subroutine lj6_kernel_rs
 
   !> The Lennard-Jones kernel of the law over a chunk of nk squared distances, by the
@@ -274,7 +282,7 @@ contains
     real(dp), intent(in) :: r2s(nk)
     real(dp), intent(out) :: cs(nk)
     type(pair_table_t), intent(in), optional :: tab   !< the law's evaluation
-    real(dp) :: c4p, rm2, rc2, lo2, hi2, d
+    real(dp) :: c4p, rm2, rc2, lo2, hi2, d, on
     integer :: m, shift, ev
     integer(i8) :: tn, base, k
     ev = eval_exact
@@ -288,9 +296,9 @@ contains
     case (eval_table)   ! the table between r_m and R; the core and the cut-off as below
       tn = tab%n; shift = tab%shift; base = tab%base; lo2 = tab%lo2; hi2 = tab%hi2
       do m = 1, nk
+        on = merge(1.0_dp, 0.0_dp, r2s(m) < rc2)   ! first (see lj6_kernel)
         call table_seg(r2s(m), lo2, hi2, tn, shift, base, k, d)
-        cs(m) = (tab%c(1, k) + d*(tab%c(2, k) + d*(tab%c(3, k) + d*tab%c(4, k))))* &
-             merge(1.0_dp, 0.0_dp, r2s(m) < rc2)
+        cs(m) = (tab%c(1, k) + d*(tab%c(2, k) + d*(tab%c(3, k) + d*tab%c(4, k))))*on
       end do
     case (eval_single)
       call lj6_kernel_sp(c4p, rm2, rc2, r2s, cs)
@@ -804,9 +812,12 @@ contains
         end associate
       else
         call lj_chunk(l, nk, r2s, pw(:, 3), tab)
+        ! the forces on i (vectorised here; chunk_sums adds the rounded products as before)
+        pw(1:nk, 1) = pw(1:nk, 3)*pw(1:nk, 1)
+        pw(1:nk, 2) = pw(1:nk, 3)*pw(1:nk, 2)
       end if
       call chunk_sums(nk, own(k0:k0 + nk - 1), nbr(k0:k0 + nk - 1), hi_direct, &
-           kernel == kernel_dipole, pw, fx, fy, s3, sx, sy, ss, mu, wsin, k_pair)
+           kernel == kernel_dipole, pw, fx, fy, s3, sx, sy, ss, mu, wsin, k_pair, hi_direct >= n)
     end do
     r2low = low
   end subroutine rows_pairs
@@ -816,11 +827,15 @@ contains
   !> come in row order: no store-to-load chain through fx(i) from one pair to the next), the
   !> reaction on j directly (j <= hi_direct) or to the spill arrays. Dipole (scaled): the force
   !> factor is k mu_i mu_j cs, and s3(i) += wsin_j r3s, s3(j) += wsin_i r3s (mu_i and wsin_i
-  !> loaded once per row; r3s = 0 without the friction sums). Otherwise (Lennard-Jones) the factor is cs itself.
+  !> loaded once per row; r3s = 0 without the friction sums). Otherwise (Lennard-Jones) columns
+  !> 1, 2 hold the pair's force itself (rows_pairs multiplies them out, vectorised: here a
+  !> product inside the sums would be contracted into two fused multiply-adds, other bits), and
+  !> serially (all_direct) the reactions go without the test on hi_direct.
   subroutine chunk_sums(nk, own, nbr, hi_direct, scaled, pw, fx, fy, s3, sx, sy, ss, mu, &
-       wsin, k_pair)
+       wsin, k_pair, all_direct)
     integer, intent(in) :: nk, own(nk), nbr(nk), hi_direct
     logical, intent(in) :: scaled
+    logical, intent(in) :: all_direct   !< hi_direct >= n: every reaction direct
     !> per pair m: separations dx, dy (columns 1, 2), force factor cs (3), r^-3 r3s (4); one
     !> array (one base register in the scalar loop, which otherwise reloads four from the stack)
     real(dp), intent(in) :: pw(pair_chunk, 4)
@@ -862,6 +877,23 @@ contains
         end if
       end do
       s3(ic) = s3(ic) + a3
+    else if (all_direct) then   ! (serial: no spill, no test per pair)
+      do m = 1, nk
+        i = own(m)
+        j = nbr(m)
+        if (i /= ic) then
+          fx(ic) = fx(ic) + ax
+          fy(ic) = fy(ic) + ay
+          ic = i
+          ax = 0; ay = 0
+        end if
+        gx = pw(m, 1)
+        gy = pw(m, 2)
+        ax = ax + gx
+        ay = ay + gy
+        fx(j) = fx(j) - gx
+        fy(j) = fy(j) - gy
+      end do
     else
       do m = 1, nk
         i = own(m)
@@ -872,8 +904,8 @@ contains
           ic = i
           ax = 0; ay = 0
         end if
-        gx = pw(m, 3)*pw(m, 1)
-        gy = pw(m, 3)*pw(m, 2)
+        gx = pw(m, 1)
+        gy = pw(m, 2)
         ax = ax + gx
         ay = ay + gy
         if (j <= hi_direct) then
