@@ -26,8 +26,10 @@ Each N: the peer's variants are built (bench/edmd_peer/build.sh, our compiler fl
 -O3 -march=native; ``--peer-own-flags`` adds each variant built with its Makefile's flags as
 a fifth and further configuration), then ``--repeat`` rounds run every configuration once,
 the order rotated each round, and the fastest repeat of each is kept. The ratio is the peer's
-cost per collision over ours (> 1: ours faster); cost_over_first is the cost per collision
-relative to the first N (the cost growth).
+cost per collision over ours (> 1: ours faster), of the fastest repeats (ratio) and per round
+(ratio_median, ratio_min, ratio_max: the same round's cost over ours, the median and range over
+the rounds); cost_over_first is the cost per collision relative to the first N (the cost
+growth).
 Output: bench/results/edmd_vs_peer.csv (or --out NAME.csv).
 
 With ``--instructions`` the cost is counted, not timed (independent of the load): callgrind's
@@ -43,6 +45,7 @@ import json
 import math
 import os
 import re
+import statistics
 import subprocess
 import tempfile
 import time
@@ -118,6 +121,12 @@ def run_peer(exe: Path) -> dict:
     return {"loop_cpu_s": float(m.group(2)), "loop_wall_s": float(m.group(1)),
             "process_wall_s": wall, "collisions": int(m.group(3)),
             "simtime": float(m.group(4))}
+
+
+def round_ratios(costs: list[float], ours: list[float]) -> list[float]:
+    """Cost per collision over ours in the same round of the interleaved run (> 1: ours
+    faster), one ratio per round: their median and range are the figure and its spread."""
+    return [c / o for c, o in zip(costs, ours)]
 
 
 def rate_ours(exe: str, eta: float, calendar: str, tmp: Path) -> float:
@@ -203,7 +212,8 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--repeat-large", type=int, default=None,
                     help="repeats from N >= 5e5 on (default: --repeat)")
-    ap.add_argument("--variants", nargs="+", default=list(VARIANTS))
+    ap.add_argument("--variants", nargs="*", default=list(VARIANTS),
+                    help="peer variants (none: ours against --ours-base only)")
     ap.add_argument("--peer-own-flags", action="store_true",
                     help=f"also each variant built with its Makefile's flags ({PEER_OWN_FLAGS})")
     ap.add_argument("--instructions", action="store_true",
@@ -216,7 +226,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory(prefix="edmd_vs_peer_") as tmpdir:
         tmp = Path(tmpdir)
         r_ours = rate_ours(args.ours, args.eta, args.calendar, tmp)
-        r_peer = rate_peer(args.eta, tmp)
+        r_peer = rate_peer(args.eta, tmp) if args.variants else math.nan
         print(f"pair collisions per particle per tau: ours (2D) {r_ours:.4f}, "
               f"peer (3D) {r_peer:.4f}", flush=True)
         if args.instructions:
@@ -243,6 +253,7 @@ def main() -> None:
             if args.repeat_large is not None and n >= 500000:
                 repeat = args.repeat_large
             best: dict[int, dict] = {}
+            costs: dict[int, list[float]] = {k: [] for k in range(len(configs))}
             for r in range(repeat):
                 order = list(range(len(configs)))
                 order = order[r % len(order):] + order[:r % len(order)]
@@ -260,6 +271,7 @@ def main() -> None:
                     got["load"] = la
                     print(f"N={n} {engine} {variant}: {got['loop_cpu_s']:.3f} s CPU, "
                           f"{got['collisions']} collisions, load {la:.2f}", flush=True)
+                    costs[k].append(got["loop_cpu_s"] / got["collisions"])
                     if k not in best or got["loop_cpu_s"] < best[k]["loop_cpu_s"]:
                         best[k] = got
             for k, (engine, variant, _) in enumerate(configs):
@@ -272,6 +284,7 @@ def main() -> None:
             for k, (engine, variant, _) in enumerate(configs):
                 b = best[k]
                 cost = b["loop_cpu_s"] / b["collisions"]
+                per_round = round_ratios(costs[k], costs[0])
                 rows.append({"N": n, "engine": engine, "variant": variant,
                              "loop_cpu_s": b["loop_cpu_s"],
                              "process_wall_s": b["process_wall_s"],
@@ -280,6 +293,9 @@ def main() -> None:
                              "collisions_per_s": b["collisions"] / b["loop_cpu_s"],
                              "us_per_collision": 1e6 * cost,
                              "ratio": cost / ours_cost,
+                             "us_per_collision_median": 1e6 * statistics.median(costs[k]),
+                             "ratio_median": statistics.median(per_round),
+                             "ratio_min": min(per_round), "ratio_max": max(per_round),
                              "events": b.get("events", math.nan),
                              "cell_crossings": b.get("cell_crossings", math.nan),
                              "repeats": repeat, "load_at_best": b["load"]})

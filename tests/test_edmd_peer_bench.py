@@ -126,3 +126,13 @@ def test_driver_gas_is_the_matched_workload():
     assert math.isclose(o["disks.count"] * math.pi * r * r / (o["box.lx"] * o["box.ly"]), 0.25)
     assert math.isclose(o["disks.density"] * math.pi * r * r, 1.0)   # unit mass
     assert o["disks.kt"] == 1.0 and o["run.t_end"] == 3.0
+
+
+def test_round_ratios_pair_each_round_with_ours_of_the_same_round():
+    sys.path.insert(0, str(REPO / "bench"))
+    try:
+        import edmd_vs_peer as ev
+    finally:
+        sys.path.pop(0)
+    # a slow second round (load) moves both engines: the per-round ratio stays 3
+    assert ev.round_ratios([3.0, 6.0, 3.3], [1.0, 2.0, 1.1]) == pytest.approx([3.0, 3.0, 3.0])
