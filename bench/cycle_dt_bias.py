@@ -84,6 +84,9 @@ GRIDS = {"friction": [setting("implicit", 2e-3), setting("implicit", 8e-3),
          "fast_dt8_rc3.5": [with_list(setting("implicit", 8e-3, "linear", 0.8), 3.5)],
          "fast_dt8_tail1.6": [with_list(setting("implicit", 8e-3, "linear", 1.6), 4.13)],
          "fast_dt8": [with_list(setting("implicit", 8e-3, "linear", 0.8), 4.13)],
+         "fast_dt10_tail0.4": [with_list(setting("implicit", 1e-2, "linear", 0.4), 4.13)],
+         # runs/standard_fast.nml (section 35.7)
+         "fast": [with_list(setting("implicit", 1e-2, "linear", 0.4), 4.13, 0.3)],
          "fast_dt8_single": [with_pair_eval(setting("implicit", 8e-3, "linear", 0.8), "single")],
          "fast_dt6_rc3_single": [with_pair_eval(with_list(
              setting("implicit", 6e-3, "linear", 0.8), 3.0), "single")],

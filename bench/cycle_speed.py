@@ -39,9 +39,6 @@ from pyorch.bed.readers import mean_distance, piston
 
 BASELINE = "shipped"
 
-#: the cycle at dt 2e-3 T (the bias reference's time step), output cadences in time kept
-DT2 = {"integration.dt": 2e-3, "integration.tail_every": 400, "output.piston_every": 500,
-       "output.frame_every": 100000, "output.distance_every": 5000}
 
 
 def at_dt(dt: float, tail_interval: float = 0.8) -> dict[str, Any]:
@@ -55,7 +52,8 @@ def at_dt(dt: float, tail_interval: float = 0.8) -> dict[str, Any]:
 
 #: label -> overrides of runs/standard.nml (the screening candidates of section 35.7)
 SETTINGS: dict[str, dict[str, Any]] = {
-    "dt2e-3": DT2,
+    # the reference of D_3 (section 27's: dt 2e-3 T, the far field every 0.2 T)
+    "dt2e-3": at_dt(2e-3, 0.2),
     "single": {"integration.pair_eval": "single"},
     "rc3": {"integration.r_cut": 3.0},
     "rc3_single": {"integration.r_cut": 3.0, "integration.pair_eval": "single"},
@@ -73,6 +71,15 @@ SETTINGS: dict[str, dict[str, Any]] = {
     "dt8e-3_tail1.6": at_dt(8e-3, 1.6),
     "dt1e-2": at_dt(1e-2),
     "dt1e-2_tail1.6": at_dt(1e-2, 1.6),
+    "dt8e-3_tail0.4": at_dt(8e-3, 0.4),
+    "dt1e-2_tail0.4": at_dt(1e-2, 0.4),
+    "dt1e-2_tail0.4_skin0.3": {**at_dt(1e-2, 0.4), "integration.skin": 0.3},
+    "dt1e-2_tail0.5": at_dt(1e-2, 0.5),
+    "dt1.2e-2_tail0.4": at_dt(1.2e-2, 0.4),
+    "dt1e-2_tail0.4_skin0.2": {**at_dt(1e-2, 0.4), "integration.skin": 0.2},
+    "dt1e-2_tail0.4_skin0.1": {**at_dt(1e-2, 0.4), "integration.skin": 0.1},
+    "dt8e-3_tail0.4_skin0.2": {**at_dt(8e-3, 0.4), "integration.skin": 0.2},
+    "tail0.4": {"integration.tail_every": 100},
 }
 
 
@@ -159,13 +166,18 @@ def main() -> int:
             for i, (s, exe) in enumerate(plan):
                 row = {"setting": s, "seed": seed, **one(exe, scenes[s], seed,
                                                          tmp / f"run{i}_{seed}")}
-                print(json.dumps(row))
+                print(json.dumps(row), flush=True)
                 rows.append(row)
-    suffix = f"_{args.tag}" if args.tag else ""
+            save(rows, args.tag)   # after every round: a stopped job keeps its rounds
+    return 0
+
+
+def save(rows: list[dict[str, Any]], tag: str) -> None:
+    """The rows and their summary to bench/results/cycle_speed[_TAG][_rows].csv."""
+    suffix = f"_{tag}" if tag else ""
     frame = pd.DataFrame(rows)
     common.save_table(frame, f"cycle_speed{suffix}_rows.csv")
     common.save_table(summary(frame), f"cycle_speed{suffix}.csv")
-    return 0
 
 
 if __name__ == "__main__":
