@@ -15,6 +15,10 @@ every 0.2 T at every dt (the interval in time is what its error depends on: sect
         --grid dt4_single --reuse bench/results/cycle_dt_bias_rows.csv --tag single
         # + single (section 35.3) -> cycle_dt_bias_single_rows.csv (its rows), _single.csv
 
+    OMP_NUM_THREADS=1 .venv/bin/python bench/cycle_dt_bias.py --seeds 112 --workers 2 --keep \
+        --grid fast --reuse bench/results/cycle_dt_bias_rows.csv --tag fast --out /tmp/c2x/cdb_fast
+        # runs/standard_fast.nml's numerics (section 35.7) -> cycle_dt_bias_fast_rows.csv, _fast.csv
+
 With ``--reuse`` a ``--tag`` is required: the new rows (and the reused ones of this grid's
 settings) go to cycle_dt_bias_TAG_rows.csv and the shared references are never rewritten
 (sections 25 and 27 ran the grids shipped, linear0.8, certify and dt4 before this rule,
@@ -36,7 +40,7 @@ import pandas as pd
 
 import common
 from pyorch.bed.trade import measure
-from pyorch.run import run
+from pyorch.run import Run, run
 from pyorch.scene import Scene
 
 REFERENCE = "implicit_dt0.002"
@@ -100,12 +104,24 @@ def compression_only(scene: Path) -> Scene:
          "output.distance_every": 10**9, "output.checkpoint_every": 0})
 
 
-def one(base: Scene, label: str, over: dict[str, Any], seed: int, out: Path) -> dict[str, Any]:
-    """Run one (setting, seed); the row of its measurements (status on failure)."""
-    row: dict[str, Any] = {"label": label, "seed": seed, **over}
+def finished(path: Path) -> bool:
+    """Whether ``path`` holds a completed run (run.json status 'completed')."""
     try:
-        r = run(base.with_overrides(dict(over, **{"particles.seed": seed})),
-                out / f"{label}_seed{seed}", progress=False, threads=1, overwrite=True)
+        return Run(path).meta["status"] == "completed"
+    except Exception:  # noqa: BLE001 - no run, a broken or a running one: not finished
+        return False
+
+
+def one(base: Scene, label: str, over: dict[str, Any], seed: int, out: Path,
+        keep: bool = False) -> dict[str, Any]:
+    """Run one (setting, seed); the row of its measurements (status on failure). With keep, a
+    completed run already in its directory (of an earlier, stopped job) is measured, not rerun."""
+    row: dict[str, Any] = {"label": label, "seed": seed, **over}
+    path = out / f"{label}_seed{seed}"
+    try:
+        scene = base.with_overrides(dict(over, **{"particles.seed": seed}))
+        r = Run(path) if keep and finished(path) else run(scene, path, progress=False,
+                                                           threads=1, overwrite=True)
         row.update(measure(r))
     except Exception as exc:  # noqa: BLE001 - a failed setting is a measured outcome
         row["status"] = f"failed: {exc}"
@@ -133,7 +149,11 @@ def paired_bias(rows: pd.DataFrame, reference: str = REFERENCE) -> pd.DataFrame:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--seeds", type=int, default=32)
+    ap.add_argument("--seeds", type=int, default=32, help="seeds SEED_FROM..SEEDS")
+    ap.add_argument("--seed-from", type=int, default=1)
+    ap.add_argument("--keep", action="store_true",
+                    help="measure completed runs already in --out instead of rerunning them "
+                         "(they must be of this grid's settings: the directory names say so)")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--out", type=Path, default=Path("/tmp/cycle_dt_bias"))
     ap.add_argument("--grid", choices=sorted(GRIDS), default="friction")
@@ -151,8 +171,8 @@ def main() -> int:
             else pd.DataFrame(columns=["label", "seed"]))
     have = set(zip(kept["label"], kept["seed"]))
     grid = GRIDS[args.grid]
-    jobs = [(base, lab, ov, s, args.out) for s in range(1, args.seeds + 1) for lab, ov in grid
-            if (lab, s) not in have]
+    jobs = [(base, lab, ov, s, args.out, args.keep) for s in range(args.seed_from, args.seeds + 1)
+            for lab, ov in grid if (lab, s) not in have]
     with ProcessPoolExecutor(max_workers=args.workers) as pool:
         new = pd.DataFrame(list(pool.map(one, *zip(*jobs)))) if jobs else pd.DataFrame()
     rows = pd.concat([kept, new], ignore_index=True)
