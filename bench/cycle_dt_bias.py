@@ -11,12 +11,18 @@ every 0.2 T at every dt (the interval in time is what its error depends on: sect
 
     OMP_NUM_THREADS=1 .venv/bin/python bench/cycle_dt_bias.py --seeds 32 --workers 2
         # -> bench/results/cycle_dt_bias_rows.csv, cycle_dt_bias.csv
-    OMP_NUM_THREADS=1 .venv/bin/python bench/cycle_dt_bias.py --seeds 32 --workers 2 \
-        --grid shipped --reuse bench/results/cycle_dt_bias_rows.csv   # + the shipped setting
-    OMP_NUM_THREADS=1 .venv/bin/python bench/cycle_dt_bias.py --seeds 112 --workers 2 \
-        --grid dt4 --reuse bench/results/cycle_dt_bias_rows.csv       # + dt 4e-3 (section 27)
     OMP_NUM_THREADS=1 .venv/bin/python bench/cycle_dt_bias.py --seeds 112 --workers 1 \
-        --grid dt4_single --reuse bench/results/cycle_dt_bias_rows.csv  # + single (section 35)
+        --grid dt4_single --reuse bench/results/cycle_dt_bias_rows.csv --tag single
+        # + single (section 35.3) -> cycle_dt_bias_single_rows.csv (its rows), _single.csv
+
+    OMP_NUM_THREADS=1 .venv/bin/python bench/cycle_dt_bias.py --seeds 112 --workers 2 --keep \
+        --grid fast --reuse bench/results/cycle_dt_bias_rows.csv --tag fast --out /tmp/c2x/cdb_fast
+        # runs/standard_fast.nml's numerics (section 35.7) -> cycle_dt_bias_fast_rows.csv, _fast.csv
+
+With ``--reuse`` a ``--tag`` is required: the new rows (and the reused ones of this grid's
+settings) go to cycle_dt_bias_TAG_rows.csv and the shared references are never rewritten
+(sections 25 and 27 ran the grids shipped, linear0.8, certify and dt4 before this rule,
+appending to cycle_dt_bias_rows.csv itself).
 
 Unlike ``bench/dt_bias.py`` (compression at 1 D1/T, where the particles always slide) this
 regime holds most particles by static friction, and that is where the lagged friction velocity
@@ -34,7 +40,7 @@ import pandas as pd
 
 import common
 from pyorch.bed.trade import measure
-from pyorch.run import run
+from pyorch.run import Run, run
 from pyorch.scene import Scene
 
 REFERENCE = "implicit_dt0.002"
@@ -55,6 +61,15 @@ def setting(friction: str, dt: float, tail: str = "frozen",
     return label, over
 
 
+def with_list(labelled: tuple[str, dict[str, Any]], r_cut: float,
+              skin: float = 0.5) -> tuple[str, dict[str, Any]]:
+    """A setting with the Verlet list's cut-off r_cut and skin [D1] (label suffixed
+    _rcR_skinS; runs/standard.nml has r_cut 4.13, skin 0.5)."""
+    label, over = labelled
+    return (f"{label}_rc{r_cut:g}_skin{skin:g}",
+            {**over, "integration.r_cut": r_cut, "integration.skin": skin})
+
+
 def with_pair_eval(labelled: tuple[str, dict[str, Any]], ev: str) -> tuple[str, dict[str, Any]]:
     """A setting with &integration pair_eval = ev (label suffixed _ev)."""
     label, over = labelled
@@ -68,7 +83,18 @@ GRIDS = {"friction": [setting("implicit", 2e-3), setting("implicit", 8e-3),
          "certify": [setting("implicit", 2e-3), setting("implicit", 8e-3, "linear", 0.8)],
          "dt4": [setting("implicit", 4e-3, "linear", 0.8)],
          # the shipped setting with single-precision pair arithmetic (issue 27, section 35)
-         "dt4_single": [with_pair_eval(setting("implicit", 4e-3, "linear", 0.8), "single")]}
+         "dt4_single": [with_pair_eval(setting("implicit", 4e-3, "linear", 0.8), "single")],
+         # screening for a cheaper standard cycle (issue 27, section 35.7)
+         "fast_dt8_rc3.5": [with_list(setting("implicit", 8e-3, "linear", 0.8), 3.5)],
+         "fast_dt8_tail1.6": [with_list(setting("implicit", 8e-3, "linear", 1.6), 4.13)],
+         "fast_dt8": [with_list(setting("implicit", 8e-3, "linear", 0.8), 4.13)],
+         "fast_dt10_tail0.4": [with_list(setting("implicit", 1e-2, "linear", 0.4), 4.13)],
+         # runs/standard_fast.nml (section 35.7)
+         "fast": [with_list(setting("implicit", 1e-2, "linear", 0.4), 4.13, 0.3)],
+         "fast_dt8_single": [with_pair_eval(setting("implicit", 8e-3, "linear", 0.8), "single")],
+         "fast_dt6_rc3_single": [with_pair_eval(with_list(
+             setting("implicit", 6e-3, "linear", 0.8), 3.0), "single")],
+         "fast_dt6_rc3.5": [with_list(setting("implicit", 6e-3, "linear", 0.8), 3.5)]}
 
 
 def compression_only(scene: Path) -> Scene:
@@ -78,12 +104,24 @@ def compression_only(scene: Path) -> Scene:
          "output.distance_every": 10**9, "output.checkpoint_every": 0})
 
 
-def one(base: Scene, label: str, over: dict[str, Any], seed: int, out: Path) -> dict[str, Any]:
-    """Run one (setting, seed); the row of its measurements (status on failure)."""
-    row: dict[str, Any] = {"label": label, "seed": seed, **over}
+def finished(path: Path) -> bool:
+    """Whether ``path`` holds a completed run (run.json status 'completed')."""
     try:
-        r = run(base.with_overrides(dict(over, **{"particles.seed": seed})),
-                out / f"{label}_seed{seed}", progress=False, threads=1, overwrite=True)
+        return Run(path).meta["status"] == "completed"
+    except Exception:  # noqa: BLE001 - no run, a broken or a running one: not finished
+        return False
+
+
+def one(base: Scene, label: str, over: dict[str, Any], seed: int, out: Path,
+        keep: bool = False) -> dict[str, Any]:
+    """Run one (setting, seed); the row of its measurements (status on failure). With keep, a
+    completed run already in its directory (of an earlier, stopped job) is measured, not rerun."""
+    row: dict[str, Any] = {"label": label, "seed": seed, **over}
+    path = out / f"{label}_seed{seed}"
+    try:
+        scene = base.with_overrides(dict(over, **{"particles.seed": seed}))
+        r = Run(path) if keep and finished(path) else run(scene, path, progress=False,
+                                                           threads=1, overwrite=True)
         row.update(measure(r))
     except Exception as exc:  # noqa: BLE001 - a failed setting is a measured outcome
         row["status"] = f"failed: {exc}"
@@ -111,25 +149,39 @@ def paired_bias(rows: pd.DataFrame, reference: str = REFERENCE) -> pd.DataFrame:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--seeds", type=int, default=32)
+    ap.add_argument("--seeds", type=int, default=32, help="seeds SEED_FROM..SEEDS")
+    ap.add_argument("--seed-from", type=int, default=1)
+    ap.add_argument("--keep", action="store_true",
+                    help="measure completed runs already in --out instead of rerunning them "
+                         "(they must be of this grid's settings: the directory names say so)")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--out", type=Path, default=Path("/tmp/cycle_dt_bias"))
     ap.add_argument("--grid", choices=sorted(GRIDS), default="friction")
-    ap.add_argument("--reuse", type=Path, default=None,
-                    help="rows of an earlier run (e.g. the reference): not run again")
+    ap.add_argument("--reuse", type=Path, nargs="+", default=[],
+                    help="rows of earlier runs (e.g. the references): not run again")
+    ap.add_argument("--tag", default="",
+                    help="results: cycle_dt_bias_TAG_rows.csv (this grid's rows, new and reused) "
+                         "and cycle_dt_bias_TAG.csv (every setting's bias); required with "
+                         "--reuse, so that the reused (shared) rows file is never rewritten")
     args = ap.parse_args()
+    if args.reuse and not args.tag:
+        ap.error("--tag: required with --reuse (the reused rows file is not rewritten)")
     base = compression_only(common.REPO / "runs" / "standard.nml")
-    kept = pd.read_csv(args.reuse) if args.reuse else pd.DataFrame(columns=["label", "seed"])
+    kept = (pd.concat([pd.read_csv(p) for p in args.reuse], ignore_index=True) if args.reuse
+            else pd.DataFrame(columns=["label", "seed"]))
     have = set(zip(kept["label"], kept["seed"]))
     grid = GRIDS[args.grid]
-    jobs = [(base, lab, ov, s, args.out) for s in range(1, args.seeds + 1) for lab, ov in grid
-            if (lab, s) not in have]
+    jobs = [(base, lab, ov, s, args.out, args.keep) for s in range(args.seed_from, args.seeds + 1)
+            for lab, ov in grid if (lab, s) not in have]
     with ProcessPoolExecutor(max_workers=args.workers) as pool:
         new = pd.DataFrame(list(pool.map(one, *zip(*jobs)))) if jobs else pd.DataFrame()
     rows = pd.concat([kept, new], ignore_index=True)
-    common.save_table(rows, "cycle_dt_bias_rows.csv")
+    suffix = f"_{args.tag}" if args.tag else ""
+    labels = {lab for lab, _ in grid}
+    own = rows if not args.reuse else rows[rows["label"].isin(labels)]
+    common.save_table(own, f"cycle_dt_bias{suffix}_rows.csv")
     table = paired_bias(rows)
-    common.save_table(table, "cycle_dt_bias.csv")
+    common.save_table(table, f"cycle_dt_bias{suffix}.csv")
     print(table.to_string(index=False, float_format=lambda v: f"{v:.3f}"))
     return 0
 
