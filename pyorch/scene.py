@@ -351,7 +351,6 @@ def validate(scene: Scene | str | Path) -> dict[str, Any]:
             path = Path(scene)
             if not path.is_file():
                 raise SceneError(f"{path}: scene file not found")
-        shown = str(getattr(scene, "source", None) or path)
         code, msg, n_steps = _engine.api.check_scene(str(path))
         if code != 0:
             text = _engine_message(msg)

@@ -126,7 +126,7 @@ def test_threaded_mean_distance_has_the_same_bits(make_scene, tmp_path):
                       "output.frame_every": 0, "output.energy_every": 0})
     scene = make_scene("demo", ov)
     a = run(scene, tmp_path / "t1", progress=False, threads=1)
-    b = run(scene, tmp_path / "t2", progress=False, threads=2)
+    run(scene, tmp_path / "t2", progress=False, threads=2)
     da = (tmp_path / "t1" / "mean_distance.dat").read_bytes()
     db = (tmp_path / "t2" / "mean_distance.dat").read_bytes()
     assert a.meta["pairs_per_step"] < 5e4 and len(a.mean_distance()) == 21

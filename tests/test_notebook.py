@@ -6,7 +6,6 @@ whose result drifts fails here too.
 """
 from __future__ import annotations
 
-import os
 import time
 from pathlib import Path
 
