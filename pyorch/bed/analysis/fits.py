@@ -17,8 +17,15 @@ from scipy.optimize import curve_fit
 # --------------------------------------------------------------------------------------------------
 # Fits
 # --------------------------------------------------------------------------------------------------
+class _Fields:
+    """``to_series``: a result dataclass's fields (parameters, errors, r2, ...) as a Series."""
+
+    def to_series(self) -> pd.Series:
+        return pd.Series(asdict(self), dtype=float)
+
+
 @dataclass(frozen=True)
-class BiexponentialFit:
+class BiexponentialFit(_Fields):
     """Result of :func:`fit_biexponential`: ``A exp(lambda1 x) + B exp(lambda2 x)``, lambda1 <= lambda2.
 
     ``*_err`` are 1-sigma uncertainties (sqrt of the covariance diagonal); ``r2`` the coefficient of
@@ -40,13 +47,9 @@ class BiexponentialFit:
         x = np.asarray(x, dtype=float)
         return self.A * np.exp(self.lambda1 * x) + self.B * np.exp(self.lambda2 * x)
 
-    def to_series(self) -> pd.Series:
-        """Parameters, errors and r2 as a Series."""
-        return pd.Series(asdict(self), dtype=float)
-
 
 @dataclass(frozen=True)
-class LinearFit:
+class LinearFit(_Fields):
     """Result of :func:`fit_linear`: ``slope * x + intercept`` with 1-sigma errors and ``r2``."""
 
     slope: float
@@ -59,22 +62,14 @@ class LinearFit:
         """Evaluate the fitted line at ``x``."""
         return self.slope * np.asarray(x, dtype=float) + self.intercept
 
-    def to_series(self) -> pd.Series:
-        """Parameters, errors and r2 as a Series."""
-        return pd.Series(asdict(self), dtype=float)
-
 
 @dataclass(frozen=True)
-class Correlation:
+class Correlation(_Fields):
     """Result of :func:`pearson`: coefficient ``r``, two-sided ``p_value``, sample size ``n``."""
 
     r: float
     p_value: float
     n: int
-
-    def to_series(self) -> pd.Series:
-        """Fields as a Series."""
-        return pd.Series(asdict(self), dtype=float)
 
 
 def _xy(x: ArrayLike, y: ArrayLike, n_min: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
