@@ -14,6 +14,14 @@ every 0.2 T at every dt (the interval in time is what its error depends on: sect
     OMP_NUM_THREADS=1 .venv/bin/python bench/cycle_dt_bias.py --seeds 112 --workers 1 \
         --grid dt4_single --reuse bench/results/cycle_dt_bias_rows.csv --tag single
         # + single (section 35.3) -> cycle_dt_bias_single_rows.csv (its rows), _single.csv
+    OMP_NUM_THREADS=1 .venv/bin/python bench/cycle_dt_bias.py --seeds 112 --workers 1 \
+        --grid dt4_rsqrt --reuse bench/results/cycle_dt_bias_rows.csv --tag rsqrt   # and table
+        # rsqrt and the table (section 35.9) -> cycle_dt_bias_rsqrt_rows.csv, _rsqrt.csv, ...
+    OMP_NUM_THREADS=1 .venv/bin/python bench/cycle_dt_bias.py --seeds 112 --workers 1 --keep \
+        --grid ref_linear0.2 --reuse bench/results/cycle_dt_bias_rows.csv \
+        bench/results/cycle_dt_bias_fast_rows.csv --tag ref_linear --out /tmp/cdb/ref
+        # the reference with the linear far field (section 35.9); --reference LABEL measures
+        # every setting against another reference (e.g. implicit_dt0.002_linear0.2)
 
     OMP_NUM_THREADS=1 .venv/bin/python bench/cycle_dt_bias.py --seeds 112 --workers 2 --keep \
         --grid fast --reuse bench/results/cycle_dt_bias_rows.csv --tag fast --out /tmp/c2x/cdb_fast
@@ -84,6 +92,9 @@ GRIDS = {"friction": [setting("implicit", 2e-3), setting("implicit", 8e-3),
          "dt4": [setting("implicit", 4e-3, "linear", 0.8)],
          # the shipped setting with single-precision pair arithmetic (issue 27, section 35)
          "dt4_single": [with_pair_eval(setting("implicit", 4e-3, "linear", 0.8), "single")],
+         # ... with the refined reciprocal square root and with the table in r^2 (section 35.9)
+         "dt4_rsqrt": [with_pair_eval(setting("implicit", 4e-3, "linear", 0.8), "rsqrt")],
+         "dt4_table": [with_pair_eval(setting("implicit", 4e-3, "linear", 0.8), "table")],
          # screening for a cheaper standard cycle (issue 27, section 35.7)
          "fast_dt8_rc3.5": [with_list(setting("implicit", 8e-3, "linear", 0.8), 3.5)],
          "fast_dt8_tail1.6": [with_list(setting("implicit", 8e-3, "linear", 1.6), 4.13)],
@@ -94,7 +105,13 @@ GRIDS = {"friction": [setting("implicit", 2e-3), setting("implicit", 8e-3),
          "fast_dt8_single": [with_pair_eval(setting("implicit", 8e-3, "linear", 0.8), "single")],
          "fast_dt6_rc3_single": [with_pair_eval(with_list(
              setting("implicit", 6e-3, "linear", 0.8), 3.0), "single")],
-         "fast_dt6_rc3.5": [with_list(setting("implicit", 6e-3, "linear", 0.8), 3.5)]}
+         "fast_dt6_rc3.5": [with_list(setting("implicit", 6e-3, "linear", 0.8), 3.5)],
+         # the reference's own far-field error: dt 2e-3 T with the linear far field every
+         # 0.2 T (second order) instead of the frozen one (first order; section 35.9)
+         "ref_linear0.2": [setting("implicit", 2e-3, "linear", 0.2)],
+         # ... and the frozen far field at a quarter of the reference's interval (first order:
+         # a quarter of its error, if the frozen field is what moves F_max)
+         "ref_frozen0.05": [setting("implicit", 2e-3, "frozen", 0.05)]}
 
 
 def compression_only(scene: Path) -> Scene:
@@ -159,6 +176,8 @@ def main() -> int:
     ap.add_argument("--grid", choices=sorted(GRIDS), default="friction")
     ap.add_argument("--reuse", type=Path, nargs="+", default=[],
                     help="rows of earlier runs (e.g. the references): not run again")
+    ap.add_argument("--reference", default=REFERENCE,
+                    help=f"the label the biases are measured against (default {REFERENCE})")
     ap.add_argument("--tag", default="",
                     help="results: cycle_dt_bias_TAG_rows.csv (this grid's rows, new and reused) "
                          "and cycle_dt_bias_TAG.csv (every setting's bias); required with "
@@ -180,7 +199,7 @@ def main() -> int:
     labels = {lab for lab, _ in grid}
     own = rows if not args.reuse else rows[rows["label"].isin(labels)]
     common.save_table(own, f"cycle_dt_bias{suffix}_rows.csv")
-    table = paired_bias(rows)
+    table = paired_bias(rows, args.reference)
     common.save_table(table, f"cycle_dt_bias{suffix}.csv")
     print(table.to_string(index=False, float_format=lambda v: f"{v:.3f}"))
     return 0
