@@ -794,7 +794,10 @@ contains
     k_hi = start(i_hi + 1) - 1
     do k0 = start(i_lo), k_hi, chunk
       nk = min(chunk, k_hi - k0 + 1)
-      do m = 1, nk                  ! distances (gathers), shared by the laws
+      ! scalar loads, not vector gathers: with AVX-512 GCC 12 gathers 8 doubles per
+      ! vgatherdpd, which on Zen 4 cost 1.5x the scalar loop (bench/RESULTS.md 35.10)
+      !GCC$ novector
+      do m = 1, nk                  ! distances, shared by the laws
         k = k0 + m - 1
         i = own(k)
         j = nbr(k)
