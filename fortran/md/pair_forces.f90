@@ -805,9 +805,9 @@ contains
         pw(m, 2) = y(i) - y(j)
         r2s(m) = pw(m, 1)*pw(m, 1) + pw(m, 2)*pw(m, 2)
         low = min(low, r2s(m))
-        pw(m, 3) = 1
       end do
       if (kernel == kernel_dipole) then
+        pw(1:nk, 3) = 1             ! (the law's input factor; lj_chunk writes its own)
         ! force factor times k mu_i mu_j in chunk_sums (no gathers of mu, wsin here); r^-3
         ! times 0 without the friction sums (s3 then gets + 0)
         associate (c => pw(:, 3), r3 => pw(:, 4), ci => 1.0_dp, w3 => keep3)
