@@ -803,6 +803,8 @@ contains
         j = nbr(k)
         pw(m, 1) = x(i) - x(j)
         pw(m, 2) = y(i) - y(j)
+      end do
+      do m = 1, nk                  ! (vectorised)
         r2s(m) = pw(m, 1)*pw(m, 1) + pw(m, 2)*pw(m, 2)
         low = min(low, r2s(m))
       end do
