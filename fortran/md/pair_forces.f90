@@ -794,17 +794,22 @@ contains
     k_hi = start(i_hi + 1) - 1
     do k0 = start(i_lo), k_hi, chunk
       nk = min(chunk, k_hi - k0 + 1)
-      do m = 1, nk                  ! distances (gathers), shared by the laws
+      ! scalar loads, not vector gathers: with AVX-512 GCC 12 gathers 8 doubles per
+      ! vgatherdpd, which on Zen 4 cost 1.5x the scalar loop (bench/RESULTS.md 35.10)
+      !GCC$ novector
+      do m = 1, nk                  ! distances, shared by the laws
         k = k0 + m - 1
         i = own(k)
         j = nbr(k)
         pw(m, 1) = x(i) - x(j)
         pw(m, 2) = y(i) - y(j)
+      end do
+      do m = 1, nk                  ! (vectorised)
         r2s(m) = pw(m, 1)*pw(m, 1) + pw(m, 2)*pw(m, 2)
         low = min(low, r2s(m))
-        pw(m, 3) = 1
       end do
       if (kernel == kernel_dipole) then
+        pw(1:nk, 3) = 1             ! (the law's input factor; lj_chunk writes its own)
         ! force factor times k mu_i mu_j in chunk_sums (no gathers of mu, wsin here); r^-3
         ! times 0 without the friction sums (s3 then gets + 0)
         associate (c => pw(:, 3), r3 => pw(:, 4), ci => 1.0_dp, w3 => keep3)
@@ -817,7 +822,8 @@ contains
         pw(1:nk, 2) = pw(1:nk, 3)*pw(1:nk, 2)
       end if
       call chunk_sums(nk, own(k0:k0 + nk - 1), nbr(k0:k0 + nk - 1), hi_direct, &
-           kernel == kernel_dipole, pw, fx, fy, s3, sx, sy, ss, mu, wsin, k_pair, hi_direct >= n)
+           kernel == kernel_dipole, pw, fx, fy, s3, sx, sy, ss, mu, wsin, k_pair, hi_direct >= n, &
+           start(own(k0) + 1:), k0)
     end do
     r2low = low
   end subroutine rows_pairs
@@ -832,8 +838,11 @@ contains
   !> product inside the sums would be contracted into two fused multiply-adds, other bits), and
   !> serially (all_direct) the reactions go without the test on hi_direct.
   subroutine chunk_sums(nk, own, nbr, hi_direct, scaled, pw, fx, fy, s3, sx, sy, ss, mu, &
-       wsin, k_pair, all_direct)
+       wsin, k_pair, all_direct, next_start, k0)
     integer, intent(in) :: nk, own(nk), nbr(nk), hi_direct
+    !> the list's start(i + 1), i = own(1), own(1) + 1, ..., and the chunk's first pair k0:
+    !> with all_direct, the row ends from these (no load of own per pair)
+    integer, intent(in) :: next_start(*), k0
     logical, intent(in) :: scaled
     logical, intent(in) :: all_direct   !< hi_direct >= n: every reaction direct
     !> per pair m: separations dx, dy (columns 1, 2), force factor cs (3), r^-3 r3s (4); one
@@ -841,7 +850,7 @@ contains
     real(dp), intent(in) :: pw(pair_chunk, 4)
     real(dp), intent(in) :: mu(*), wsin(*), k_pair
     real(dp), intent(inout) :: fx(*), fy(*), s3(*), sx(*), sy(*), ss(*)
-    integer :: m, i, j, ic
+    integer :: m, i, j, ic, m_end
     real(dp) :: gx, gy, ax, ay, a3, c, ci, wi
     ic = own(1)
     ax = 0; ay = 0; a3 = 0
@@ -878,13 +887,14 @@ contains
       end do
       s3(ic) = s3(ic) + a3
     else if (all_direct) then   ! (serial: no spill, no test per pair)
+      m_end = next_start(1) - k0      ! the last pair of row ic in the chunk (or beyond it)
       do m = 1, nk
-        i = own(m)
         j = nbr(m)
-        if (i /= ic) then
+        if (m > m_end) then
           fx(ic) = fx(ic) + ax
           fy(ic) = fy(ic) + ay
-          ic = i
+          ic = own(m)
+          m_end = next_start(ic - own(1) + 1) - k0
           ax = 0; ay = 0
         end if
         gx = pw(m, 1)
