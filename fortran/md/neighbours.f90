@@ -114,11 +114,13 @@ contains
   subroutine nlist_refresh(nl, s)
     type(nlist_t), intent(inout) :: nl
     type(state_t), intent(inout) :: s
+    integer :: k
     if (.not. nlist_due(nl, s%n, s%x, s%y)) return
     call nlist_bin(nl, s%n, s%x, s%y)
     if (nl%strategy /= nb_cells) then
       call state_permute(s, nl%cell_part)
-      call nlist_bin(nl, s%n, s%x, s%y)
+      ! now sorted by cell: binning again would give the same cell_start, and cell_part 1..n
+      nl%cell_part = [(k, k = 1, s%n)]
     end if
     call nlist_build(nl, s%n, s%x, s%y)
   end subroutine nlist_refresh
