@@ -78,21 +78,22 @@ contains
   end subroutine state_permute
 
   !> a = a(perm), unless every element has a(1)'s value and sign (then a(perm) = a, bit for
-  !> bit: -0 and +0 differ here, and an array holding a NaN is permuted).
+  !> bit: -0 and +0 differ here, and an array holding a NaN is permuted). The test stops at
+  !> the first other element (the second, for positions and velocities).
   subroutine permute_real(a, perm)
     real(dp), intent(inout) :: a(:)
     integer, intent(in) :: perm(:)
-    integer :: i, other
+    integer :: i
     real(dp) :: a1, s1
     if (size(a) == 0) return
     a1 = a(1)
     s1 = sign(1.0_dp, a1)
-    other = 0
-    do i = 1, size(a)   ! a count, not an early exit: GCC 12 vectorises it
-      other = other + merge(0, 1, a(i) == a1 .and. sign(1.0_dp, a(i)) == s1)
+    do i = 1, size(a)
+      if (a(i) /= a1 .or. sign(1.0_dp, a(i)) /= s1) then
+        a = a(perm)
+        return
+      end if
     end do
-    if (other == 0) return
-    a = a(perm)
   end subroutine permute_real
 
 end module state
