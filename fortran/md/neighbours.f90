@@ -114,11 +114,13 @@ contains
   subroutine nlist_refresh(nl, s)
     type(nlist_t), intent(inout) :: nl
     type(state_t), intent(inout) :: s
+    integer :: k
     if (.not. nlist_due(nl, s%n, s%x, s%y)) return
     call nlist_bin(nl, s%n, s%x, s%y)
     if (nl%strategy /= nb_cells) then
       call state_permute(s, nl%cell_part)
-      call nlist_bin(nl, s%n, s%x, s%y)
+      ! now sorted by cell: binning again would give the same cell_start, and cell_part 1..n
+      nl%cell_part = [(k, k = 1, s%n)]
     end if
     call nlist_build(nl, s%n, s%x, s%y)
   end subroutine nlist_refresh
@@ -232,7 +234,8 @@ contains
   !> Serially, one pass instead: each row written where the previous one ended, while its
   !> candidates (the stencil's particles) fit in nbr; a row that might not fit falls back to
   !> the two passes. The rows written by then are those of the two passes at the same
-  !> places, and every other slot holds its old value: nbr is the same array either way.
+  !> places, and every other slot holds its old value: nbr is the same array either way
+  !> (each row scanned into a buffer first, then its kept neighbours copied).
   subroutine nlist_build(nl, n, x, y)
     !$ use omp_lib, only: omp_get_max_threads
     type(nlist_t), intent(inout) :: nl
@@ -240,15 +243,22 @@ contains
     real(dp), intent(in) :: x(n), y(n)
     integer :: i, total, dummy, cand
     integer, allocatable :: cnt(:)
+    integer, allocatable :: row(:)   !< serial: one row's candidates, the kept ones first
     logical :: serial
     serial = n < par_min_loop
     !$ serial = serial .or. omp_get_max_threads() == 1
     if (serial) then
       nl%start(1) = 1
+      allocate(row(64))
       do i = 1, n
         call scan_row(i, row_candidates, cand, 0, 0)
         if (nl%start(i) + cand - 1 > size(nl%nbr)) exit
-        call scan_row(i, row_append, cand, nl%start(i), 0)
+        if (cand > size(row)) then
+          deallocate(row)
+          allocate(row(2*cand))
+        end if
+        call scan_row(i, row_append, cand, 0, 0)
+        nl%nbr(nl%start(i):nl%start(i) + cand - 1) = row(1:cand)
         nl%start(i + 1) = nl%start(i) + cand
       end do
       if (i > n) then
@@ -290,13 +300,15 @@ contains
     end subroutine built
     !> Neighbours j > i of particle i within rlist, by mode: count them (row_count), write
     !> them to nbr from position at (row_fill: the row's count from the counting pass is
-    !> expected; row_append: serial, nbr holds the candidates), or count the candidates, the
-    !> stencil's particles (row_candidates). No branch on the distance (a candidate is in the
-    !> list about half the time, so a branch mispredicts): the count adds the test's 0 or 1,
-    !> and the fill writes every candidate to the row's next free slot (the slot's old value
-    !> back when the candidate is out; row_fill never past the row's last slot, which may be
-    !> another thread's; row_append never past the row's candidates, which nlist_build
-    !> has checked fit: a slot past the row's last entry only ever gets its old value back).
+    !> expected), to row(1:count) (row_append: serial; row holds the candidates), or count
+    !> the candidates, the stencil's particles (row_candidates). No branch on the distance (a
+    !> candidate is in the list about half the time, so a branch mispredicts): the count adds
+    !> the tests' 0 or 1. row_fill writes every candidate to the row's next free slot (the
+    !> slot's old value back when the candidate is out - GCC 12 compiles that merge into a
+    !> branch and a conditional store - never past the row's last slot, which may be another
+    !> thread's); row_append stores every candidate to row's next free slot unconditionally
+    !> (no branch: the next candidate overwrites one that is out), and nlist_build copies
+    !> the kept ones to nbr, so that nbr past the list keeps its old values.
     subroutine scan_row(i, mode, count, at, expected)
       integer, intent(in) :: i, mode
       integer, intent(out) :: count
@@ -329,14 +341,21 @@ contains
             dy = y(i) - y(j)
             count = count + merge(1, 0, dx*dx + dy*dy < rl2 .and. j > i)
           end do
+        case (row_append)
+          do k = nl%cell_start(c), k_hi
+            j = nl%cell_part(k)
+            dx = x(i) - x(j)
+            dy = y(i) - y(j)
+            row(1 + count) = j
+            count = count + merge(1, 0, dx*dx + dy*dy < rl2)*merge(1, 0, j > i)
+          end do
         case default
           do k = nl%cell_start(c), k_hi
             j = nl%cell_part(k)
             dx = x(i) - x(j)
             dy = y(i) - y(j)
             keep = dx*dx + dy*dy < rl2 .and. j > i
-            slot = at + count
-            if (mode == row_fill) slot = at + min(count, expected - 1)
+            slot = at + min(count, expected - 1)
             nl%nbr(slot) = merge(j, nl%nbr(slot), keep)
             count = count + merge(1, 0, keep)
           end do
