@@ -15,8 +15,9 @@ every 0.2 T at every dt (the interval in time is what its error depends on: sect
         --grid dt4_single --reuse bench/results/cycle_dt_bias_rows.csv --tag single
         # + single (section 35.3) -> cycle_dt_bias_single_rows.csv (its rows), _single.csv
     OMP_NUM_THREADS=1 .venv/bin/python bench/cycle_dt_bias.py --seeds 112 --workers 1 \
-        --grid dt4_rsqrt --reuse bench/results/cycle_dt_bias_rows.csv --tag rsqrt   # and table
-        # rsqrt and the table (section 35.9) -> cycle_dt_bias_rsqrt_rows.csv, _rsqrt.csv, ...
+        --grid dt4_rsqrt --reuse bench/results/cycle_dt_bias_rows.csv --tag rsqrt
+        # rsqrt (section 35.9) -> cycle_dt_bias_rsqrt_rows.csv, _rsqrt.csv; grid dt4_table
+        # (tag table) is the same for the table: not run yet
     OMP_NUM_THREADS=1 .venv/bin/python bench/cycle_dt_bias.py --seeds 112 --workers 1 --keep \
         --grid ref_linear0.2 --reuse bench/results/cycle_dt_bias_rows.csv \
         bench/results/cycle_dt_bias_fast_rows.csv --tag ref_linear --out /tmp/cdb/ref

@@ -58,42 +58,17 @@ contains
     s%id = [(i, i = 1, n)]
   end subroutine state_allocate
 
-  !> Reorder every per-particle array: new index k holds old particle perm(k). An array whose
-  !> elements all hold the same value (often: mass, mu, wsin, the far field) is left as it is.
+  !> Reorder every per-particle array: new index k holds old particle perm(k).
   subroutine state_permute(s, perm)
     type(state_t), intent(inout) :: s
     integer, intent(in) :: perm(:)
-    call permute_real(s%x, perm); call permute_real(s%y, perm)
-    call permute_real(s%vx, perm); call permute_real(s%vy, perm)
-    call permute_real(s%xp, perm); call permute_real(s%yp, perm)
-    call permute_real(s%fx, perm); call permute_real(s%fy, perm)
-    call permute_real(s%fmag, perm); call permute_real(s%s3, perm)
-    call permute_real(s%fmx, perm); call permute_real(s%fmy, perm)
-    call permute_real(s%fx_far, perm); call permute_real(s%fy_far, perm)
-    call permute_real(s%s3_far, perm); call permute_real(s%dfx_far, perm)
-    call permute_real(s%dfy_far, perm); call permute_real(s%ds3_far, perm)
-    s%id = s%id(perm); s%species = s%species(perm)
-    call permute_real(s%mass, perm); call permute_real(s%mu, perm)
-    call permute_real(s%wsin, perm); call permute_real(s%nfac, perm)
+    s%x = s%x(perm); s%y = s%y(perm); s%vx = s%vx(perm); s%vy = s%vy(perm)
+    s%xp = s%xp(perm); s%yp = s%yp(perm); s%fx = s%fx(perm); s%fy = s%fy(perm)
+    s%fmag = s%fmag(perm); s%s3 = s%s3(perm); s%fmx = s%fmx(perm); s%fmy = s%fmy(perm)
+    s%fx_far = s%fx_far(perm); s%fy_far = s%fy_far(perm); s%s3_far = s%s3_far(perm)
+    s%dfx_far = s%dfx_far(perm); s%dfy_far = s%dfy_far(perm); s%ds3_far = s%ds3_far(perm)
+    s%id = s%id(perm); s%species = s%species(perm); s%mass = s%mass(perm)
+    s%mu = s%mu(perm); s%wsin = s%wsin(perm); s%nfac = s%nfac(perm)
   end subroutine state_permute
-
-  !> a = a(perm), unless every element has a(1)'s value and sign (then a(perm) = a, bit for
-  !> bit: -0 and +0 differ here, and an array holding a NaN is permuted). The test stops at
-  !> the first other element (the second, for positions and velocities).
-  subroutine permute_real(a, perm)
-    real(dp), intent(inout) :: a(:)
-    integer, intent(in) :: perm(:)
-    integer :: i
-    real(dp) :: a1, s1
-    if (size(a) == 0) return
-    a1 = a(1)
-    s1 = sign(1.0_dp, a1)
-    do i = 1, size(a)
-      if (a(i) /= a1 .or. sign(1.0_dp, a(i)) /= s1) then
-        a = a(perm)
-        return
-      end if
-    end do
-  end subroutine permute_real
 
 end module state
