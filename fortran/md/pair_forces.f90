@@ -56,6 +56,7 @@ module pair_forces
   integer, parameter :: kernel_dipole = 1, kernel_lj6 = 2, kernel_lj = 3
   integer, parameter :: side_none = 0, side_near = 1, side_far = 2   !< split weights (dipole_ranges)
   integer, parameter :: pair_chunk = 256   !< pairs per chunk of the flat pair loop
+  real(dp), parameter :: ones(pair_chunk) = 1   !< the per-pair factor ci of rows_pairs' law
 
   !> Seed 000's steric law between r_m and the cut-off R: U = 4 U0 ((2/r)^2p - (2/r)^p),
   !> continued linearly below r_m (constant force |U'(r_m)|). Lengths in a, energies
@@ -178,11 +179,14 @@ contains
     real(dp), intent(inout) :: c(nk), r3(nk)
     type(pair_table_t), intent(in), optional :: tab
     integer(i8) :: ks(pair_chunk), tn
-    real(dp) :: ds(pair_chunk), e5, e3, keep
+    real(dp) :: ds(pair_chunk), e5, e3, keep, cis(pair_chunk)
     integer :: m, code
     code = eval_exact
     if (present(tab)) code = tab%eval
-    include 'dipole_eval.inc'
+    cis(1:nk) = ci
+    associate (ci => cis)
+      include 'dipole_eval.inc'
+    end associate
   end subroutine dipole_eval
 
   !> The dipole table's two pieces (row tc of c(8, n)) at offset d: force factor s5 and r^-3.
@@ -552,10 +556,17 @@ contains
     r2low = low
   end subroutine row_segment
 
-  !> Dipole rows i_lo..i_hi of a half neighbour list, row by row (for long rows: x_i, y_i,
-  !> mu_i, wsin_i are scalars of the row, not gathered as in rows_pairs). Two passes per
-  !> chunk: gather and evaluate (vectorisable), then accumulate on i and scatter on j
-  !> (reactions on j > hi_direct to the spill arrays, as in rows_all).
+  !> Dipole rows i_lo..i_hi of a half neighbour list, the pairs in flat chunks of pair_chunk
+  !> (whole rows and pieces of rows) walked row by row (x_i, y_i, mu_i, wsin_i are scalars of
+  !> each row's segment, not gathered per pair as in rows_pairs). Three passes per chunk:
+  !> distances per row segment (scalar loads), keeping only the pairs that can act (r^2 below
+  !> rk_keep: the others get the weight 0 exactly, so they add only signed zeros); the law over
+  !> the kept pairs of the whole chunk (vectorised: with rows of ~10 listed pairs one row's law
+  !> was a chain of dependent divisions and roots, bench/RESULTS.md 37); then per row segment
+  !> the sums on i (carried over a chunk's end while the row lasts, added to fx(i) when it ends,
+  !> every row in order, empty ones too) and the reactions on j (j > hi_direct to the spill
+  !> arrays, as in rows_all). The same operations on every acting pair, in the same order, as
+  !> one row at a time over every listed pair.
   subroutine rows_list(sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, shift4, &
        check, with_r3, start, nbr, fx, fy, s3, sx, sy, ss, r2low, tab)
     type(split_t), intent(in) :: sp
@@ -566,77 +577,136 @@ contains
     real(dp), intent(inout) :: fx(n), fy(n), s3(n)
     real(dp), intent(inout) :: sx(*), sy(*), ss(*)
     real(dp), intent(inout) :: r2low   !< running minimum of r^2
-    integer, parameter :: chunk = 256
-    integer :: i, j, m, k0, nk
-    logical :: direct
     type(pair_table_t), intent(in), optional :: tab   !< the dipole law's evaluation
-    real(dp) :: xi, yi, ci, wi, fxi, fyi, s3i, low, rk2, e5, e3, keep
-    real(dp) :: dxs(chunk), dys(chunk), cs(chunk), r3s(chunk), r2s(chunk), ds(chunk)
+    integer, parameter :: chunk = pair_chunk
+    integer :: i, j, m, k, k0, k_hi, nk, nc, ns, s, r_open, row_of(chunk), seg_lo(chunk + 1)
+    integer :: js(chunk)
+    logical :: direct
+    real(dp) :: xi, yi, ci0, c_row, wi, fxi, fyi, s3i, low, rk2, rk_keep, e5, e3, keep, dx, dy, r2
+    real(dp) :: cs(chunk), r3s(chunk), r2s(chunk), ds(chunk), cis(chunk)
     integer(i8) :: ks(chunk), tn
     integer :: code
     code = eval_exact
     if (present(tab)) code = tab%eval
     rk2 = huge(1.0_dp)   ! pairs at r >= r_c skipped only with check
     if (check) rk2 = rc2
+    ! the split's near side S(r) weights the pairs (not the mask at rk2): it is exactly 0 from
+    ! a few rounding errors above r_c^2 on (x >= 1 in near_weight), so those pairs may go
+    rk_keep = rk2
+    if (sp%on .and. check) rk_keep = rc2*(1 + 16*epsilon(1.0_dp))
     low = r2low   ! local running minimum (see row_segment)
-    do i = i_lo, i_hi
-      xi = x(i); yi = y(i)
-      ci = k_pair*mu(i)
-      wi = wsin(i)
-      fxi = 0; fyi = 0; s3i = 0
-      do k0 = start(i), start(i + 1) - 1, chunk
-        nk = min(chunk, start(i + 1) - k0)
-        do m = 1, nk   ! distances and weights (gathers)
-          j = nbr(k0 + m - 1)
-          dxs(m) = xi - x(j)
-          dys(m) = yi - y(j)
-          r2s(m) = dxs(m)*dxs(m) + dys(m)*dys(m)
-          low = min(low, r2s(m))
-          cs(m) = mu(j)
+    if (i_hi < i_lo) return
+    r_open = i_lo   ! the row whose sums fxi, fyi, s3i hold
+    fxi = 0; fyi = 0; s3i = 0
+    wi = wsin(i_lo)
+    k_hi = start(i_hi + 1) - 1
+    i = i_lo        ! the row of pair k0
+    do k0 = start(i_lo), k_hi, chunk
+      nk = min(chunk, k_hi - k0 + 1)
+      ! the chunk's row segments: segment s is row row_of(s), its kept pairs
+      ! seg_lo(s)..seg_lo(s+1)-1 of the compressed arrays js, r2s, cs, cis
+      ns = 0
+      nc = 0
+      k = k0
+      do while (k <= k0 + nk - 1)
+        do while (start(i + 1) <= k)   ! (rows ended or empty)
+          i = i + 1
         end do
-        associate (c => cs, r3 => r3s, w3 => 1.0_dp)   ! the law
-          include 'dipole_eval.inc'
-        end associate
-        direct = hi_direct >= n
-        if (.not. direct) direct = maxval(nbr(k0:k0 + nk - 1)) <= hi_direct
+        ns = ns + 1
+        row_of(ns) = i
+        seg_lo(ns) = nc + 1
+        xi = x(i); yi = y(i)
+        ci0 = k_pair*mu(i)
+        c_row = merge(1.0_dp, ci0, sp%on)
+        do k = k, min(start(i + 1), k0 + nk) - 1   ! distances (scalar loads), kept pairs
+          j = nbr(k)
+          dx = xi - x(j)
+          dy = yi - y(j)
+          r2 = dx*dx + dy*dy
+          low = min(low, r2)
+          js(nc + 1) = j
+          r2s(nc + 1) = r2
+          cs(nc + 1) = mu(j)*c_row
+          nc = nc + merge(1, 0, r2 < rk_keep)   ! (no branch: a third of the pairs go)
+        end do
+      end do
+      seg_lo(ns + 1) = nc + 1
+      ! the law: c(m) = ((S ci(m)) c(m)) e5, so without a split (S = 1) k mu_i is in c(m)
+      ! already (c_row: the same product) and ci(m) = 1; with one, ci(m) = k mu_i per pair
+      if (sp%on) then
+        do s = 1, ns
+          cis(seg_lo(s):seg_lo(s + 1) - 1) = k_pair*mu(row_of(s))
+        end do
+      else
+        cis(1:nc) = 1
+      end if
+      associate (c => cs, r3 => r3s, ci => cis, w3 => 1.0_dp, nk => nc)
+        include 'dipole_eval.inc'
+      end associate
+      direct = hi_direct >= n
+      if (.not. direct) direct = maxval(nbr(k0:k0 + nk - 1)) <= hi_direct
+      do s = 1, ns
+        if (row_of(s) /= r_open) then   ! the open row ended: its sums, then the empty rows'
+          call close_rows(row_of(s) - 1)
+          r_open = row_of(s)
+          wi = wsin(r_open)
+        end if
+        xi = x(r_open); yi = y(r_open)
         if (direct) then   ! the usual case: every j is ours
-          do m = 1, nk
-            j = nbr(k0 + m - 1)
-            fxi = fxi + cs(m)*dxs(m)
-            fyi = fyi + cs(m)*dys(m)
-            fx(j) = fx(j) - cs(m)*dxs(m)
-            fy(j) = fy(j) - cs(m)*dys(m)
+          do m = seg_lo(s), seg_lo(s + 1) - 1
+            j = js(m)
+            dx = xi - x(j)
+            dy = yi - y(j)
+            fxi = fxi + cs(m)*dx
+            fyi = fyi + cs(m)*dy
+            fx(j) = fx(j) - cs(m)*dx
+            fy(j) = fy(j) - cs(m)*dy
           end do
           if (with_r3) then
-            do m = 1, nk
-              j = nbr(k0 + m - 1)
+            do m = seg_lo(s), seg_lo(s + 1) - 1
+              j = js(m)
               s3i = s3i + wsin(j)*r3s(m)
               s3(j) = s3(j) + wi*r3s(m)
             end do
           end if
         else                          ! rows next to a later thread's block
-          do m = 1, nk
-            j = nbr(k0 + m - 1)
-            fxi = fxi + cs(m)*dxs(m)
-            fyi = fyi + cs(m)*dys(m)
+          do m = seg_lo(s), seg_lo(s + 1) - 1
+            j = js(m)
+            dx = xi - x(j)
+            dy = yi - y(j)
+            fxi = fxi + cs(m)*dx
+            fyi = fyi + cs(m)*dy
             if (with_r3) s3i = s3i + wsin(j)*r3s(m)
             if (j <= hi_direct) then
-              fx(j) = fx(j) - cs(m)*dxs(m)
-              fy(j) = fy(j) - cs(m)*dys(m)
+              fx(j) = fx(j) - cs(m)*dx
+              fy(j) = fy(j) - cs(m)*dy
               if (with_r3) s3(j) = s3(j) + wi*r3s(m)
             else
-              sx(j) = sx(j) - cs(m)*dxs(m)
-              sy(j) = sy(j) - cs(m)*dys(m)
+              sx(j) = sx(j) - cs(m)*dx
+              sy(j) = sy(j) - cs(m)*dy
               if (with_r3) ss(j) = ss(j) + wi*r3s(m)
             end if
           end do
         end if
       end do
-      fx(i) = fx(i) + fxi
-      fy(i) = fy(i) + fyi
-      if (with_r3) s3(i) = s3(i) + s3i
     end do
+    call close_rows(i_hi)
     r2low = low
+  contains
+    !> Adds the open row's sums to fx, fy, s3 and zero sums for the rows after it up to r_last.
+    subroutine close_rows(r_last)
+      integer, intent(in) :: r_last
+      integer :: r
+      fx(r_open) = fx(r_open) + fxi
+      fy(r_open) = fy(r_open) + fyi
+      if (with_r3) s3(r_open) = s3(r_open) + s3i
+      fxi = 0; fyi = 0; s3i = 0
+      do r = r_open + 1, r_last
+        fx(r) = fx(r) + fxi
+        fy(r) = fy(r) + fyi
+        if (with_r3) s3(r) = s3(r) + s3i
+      end do
+    end subroutine close_rows
   end subroutine rows_list
 
   !> Dipole rows i_lo..i_hi of a half Verlet list given as contiguous ranges of j (nlist_t
@@ -812,7 +882,7 @@ contains
         pw(1:nk, 3) = 1             ! (the law's input factor; lj_chunk writes its own)
         ! force factor times k mu_i mu_j in chunk_sums (no gathers of mu, wsin here); r^-3
         ! times 0 without the friction sums (s3 then gets + 0)
-        associate (c => pw(:, 3), r3 => pw(:, 4), ci => 1.0_dp, w3 => keep3)
+        associate (c => pw(:, 3), r3 => pw(:, 4), ci => ones, w3 => keep3)
           include 'dipole_eval.inc'
         end associate
       else
