@@ -48,7 +48,10 @@ module pair_forces
   !> AVX-512 Xeon of bench/RESULTS.md section 26; 48 on the AVX2 EPYC of section 35.6, where
   !> the rows measured 1.26-1.33x the ranges at 15 pairs per row, 1.05x at 35, 1.0x at 61
   !> (exact; single 1.3-1.8x at every length)
-  real(dp), parameter :: mid_row_pairs = 8, long_row_pairs = 48
+  !> Below kept_row_pairs (and from mid_row_pairs on) the rows go by rows_kept (flat chunks,
+  !> only the pairs below r_c: 1.05-1.22x rows_list at 10-14 listed pairs per row on Zen 4, but
+  !> 0.97x at ~34 with the split, the standard cycle; bench/RESULTS.md 37).
+  real(dp), parameter :: mid_row_pairs = 8, kept_row_pairs = 24, long_row_pairs = 48
   !> Lanes of the contiguous dipole loops (dipole_ranges): the sums on i are kept in this many
   !> fixed lanes (j = j0 + l - 1 goes to lane l), so the loop vectorises without reordering a
   !> floating-point sum; the order depends on the lane count only, never on the machine
@@ -556,7 +559,7 @@ contains
     r2low = low
   end subroutine row_segment
 
-  !> Dipole rows i_lo..i_hi of a half neighbour list, the pairs in flat chunks of pair_chunk
+  !> Dipole rows i_lo..i_hi of a half neighbour list (rows of mid_row_pairs .. kept_row_pairs), the pairs in flat chunks of pair_chunk
   !> (whole rows and pieces of rows) walked row by row (x_i, y_i, mu_i, wsin_i are scalars of
   !> each row's segment, not gathered per pair as in rows_pairs). Three passes per chunk:
   !> distances per row segment (scalar loads), keeping only the pairs that can act (r^2 below
@@ -567,7 +570,7 @@ contains
   !> every row in order, empty ones too) and the reactions on j (j > hi_direct to the spill
   !> arrays, as in rows_all). The same operations on every acting pair, in the same order, as
   !> one row at a time over every listed pair.
-  subroutine rows_list(sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, shift4, &
+  subroutine rows_kept(sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, shift4, &
        check, with_r3, start, nbr, fx, fy, s3, sx, sy, ss, r2low, tab)
     type(split_t), intent(in) :: sp
     integer, intent(in) :: i_lo, i_hi, hi_direct, n
@@ -707,6 +710,95 @@ contains
         if (with_r3) s3(r) = s3(r) + s3i
       end do
     end subroutine close_rows
+  end subroutine rows_kept
+
+  !> Dipole rows i_lo..i_hi of a half neighbour list, row by row, every listed pair (for rows
+  !> of kept_row_pairs .. long_row_pairs: x_i, y_i, mu_i, wsin_i are scalars of the row, not
+  !> gathered as in rows_pairs; shorter rows go by rows_kept). Two passes per
+  !> chunk: gather and evaluate (vectorisable), then accumulate on i and scatter on j
+  !> (reactions on j > hi_direct to the spill arrays, as in rows_all).
+  subroutine rows_list(sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, shift4, &
+       check, with_r3, start, nbr, fx, fy, s3, sx, sy, ss, r2low, tab)
+    type(split_t), intent(in) :: sp
+    integer, intent(in) :: i_lo, i_hi, hi_direct, n
+    real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair, rc2, shift4
+    logical, intent(in) :: check, with_r3
+    integer, intent(in) :: start(n + 1), nbr(*)
+    real(dp), intent(inout) :: fx(n), fy(n), s3(n)
+    real(dp), intent(inout) :: sx(*), sy(*), ss(*)
+    real(dp), intent(inout) :: r2low   !< running minimum of r^2
+    integer, parameter :: chunk = 256
+    integer :: i, j, m, k0, nk
+    logical :: direct
+    type(pair_table_t), intent(in), optional :: tab   !< the dipole law's evaluation
+    real(dp) :: xi, yi, ci, wi, fxi, fyi, s3i, low, rk2, e5, e3, keep
+    real(dp) :: dxs(chunk), dys(chunk), cs(chunk), r3s(chunk), r2s(chunk), ds(chunk), cis(chunk)
+    integer(i8) :: ks(chunk), tn
+    integer :: code
+    code = eval_exact
+    if (present(tab)) code = tab%eval
+    rk2 = huge(1.0_dp)   ! pairs at r >= r_c skipped only with check
+    if (check) rk2 = rc2
+    low = r2low   ! local running minimum (see row_segment)
+    do i = i_lo, i_hi
+      xi = x(i); yi = y(i)
+      ci = k_pair*mu(i)
+      wi = wsin(i)
+      fxi = 0; fyi = 0; s3i = 0
+      do k0 = start(i), start(i + 1) - 1, chunk
+        nk = min(chunk, start(i + 1) - k0)
+        do m = 1, nk   ! distances and weights (gathers)
+          j = nbr(k0 + m - 1)
+          dxs(m) = xi - x(j)
+          dys(m) = yi - y(j)
+          r2s(m) = dxs(m)*dxs(m) + dys(m)*dys(m)
+          low = min(low, r2s(m))
+          cs(m) = mu(j)
+        end do
+        cis(1:nk) = ci
+        associate (c => cs, r3 => r3s, ci => cis, w3 => 1.0_dp)   ! the law
+          include 'dipole_eval.inc'
+        end associate
+        direct = hi_direct >= n
+        if (.not. direct) direct = maxval(nbr(k0:k0 + nk - 1)) <= hi_direct
+        if (direct) then   ! the usual case: every j is ours
+          do m = 1, nk
+            j = nbr(k0 + m - 1)
+            fxi = fxi + cs(m)*dxs(m)
+            fyi = fyi + cs(m)*dys(m)
+            fx(j) = fx(j) - cs(m)*dxs(m)
+            fy(j) = fy(j) - cs(m)*dys(m)
+          end do
+          if (with_r3) then
+            do m = 1, nk
+              j = nbr(k0 + m - 1)
+              s3i = s3i + wsin(j)*r3s(m)
+              s3(j) = s3(j) + wi*r3s(m)
+            end do
+          end if
+        else                          ! rows next to a later thread's block
+          do m = 1, nk
+            j = nbr(k0 + m - 1)
+            fxi = fxi + cs(m)*dxs(m)
+            fyi = fyi + cs(m)*dys(m)
+            if (with_r3) s3i = s3i + wsin(j)*r3s(m)
+            if (j <= hi_direct) then
+              fx(j) = fx(j) - cs(m)*dxs(m)
+              fy(j) = fy(j) - cs(m)*dys(m)
+              if (with_r3) s3(j) = s3(j) + wi*r3s(m)
+            else
+              sx(j) = sx(j) - cs(m)*dxs(m)
+              sy(j) = sy(j) - cs(m)*dys(m)
+              if (with_r3) ss(j) = ss(j) + wi*r3s(m)
+            end if
+          end do
+        end if
+      end do
+      fx(i) = fx(i) + fxi
+      fy(i) = fy(i) + fyi
+      if (with_r3) s3(i) = s3(i) + s3i
+    end do
+    r2low = low
   end subroutine rows_list
 
   !> Dipole rows i_lo..i_hi of a half Verlet list given as contiguous ranges of j (nlist_t
@@ -1041,7 +1133,7 @@ contains
     integer :: nt, t, lo, hi, i, u
     integer :: bound(0:64)
     real(dp) :: work, dummy(1, 3)
-    logical :: mid_rows, long_rows
+    logical :: mid_rows, kept_rows, long_rows
     nt = 1
     ! threads only pay off with enough pairs per step (fork/join costs ~ microseconds)
     if (mode == mode_all) then
@@ -1053,6 +1145,7 @@ contains
     ! ranges when they are long (bench/RESULTS.md sections 26, 35.6); single precision row by
     ! row (its 8-lane range loop measured 0.6-0.8x the rows on the AVX2 EPYC)
     mid_rows = work >= mid_row_pairs*real(max(1, n), dp)
+    kept_rows = work < kept_row_pairs*real(max(1, n), dp)
     long_rows = work >= long_row_pairs*real(max(1, n), dp) .and. present(rstart)
     if (present(tab)) long_rows = long_rows .and. tab%eval /= eval_single
     !$ if (work >= 5.0e4_dp) nt = min(omp_get_max_threads(), 64)
@@ -1109,6 +1202,9 @@ contains
       else if (kernel == kernel_dipole .and. long_rows) then
         call rows_ranges(sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, shift4, &
              with_r3, rstart, rlo, rhi, ax, ay, a3, bx, by, b3, lw, tab)
+      else if (kernel == kernel_dipole .and. mid_rows .and. kept_rows) then
+        call rows_kept(sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, &
+             shift4, check, with_r3, start, nbr, ax, ay, a3, bx, by, b3, lw, tab)
       else if (kernel == kernel_dipole .and. mid_rows) then
         call rows_list(sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, &
              shift4, check, with_r3, start, nbr, ax, ay, a3, bx, by, b3, lw, tab)
