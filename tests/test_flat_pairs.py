@@ -1,6 +1,7 @@
 """The dipole list kernel on short rows (issue #17): the pairs of a half Verlet list taken as one
 flat sequence in chunks (rows_pairs) when the list holds < 8 pairs per row (row by row from 8,
-as contiguous ranges of j from 10: tests/test_neighbours.py). The flat path gives the O(N^2)
+as contiguous ranges of j from 48: tests/test_neighbours.py; from 8 to 24 the flat chunks of
+the pairs below r_c, rows_kept, tested below). The flat path gives the O(N^2)
 forces (the frozen far field refreshed every step completes a short list to all pairs),
 serially and on the threads (the threaded pass with its spill buffers starts at 5e4 listed
 pairs), and the threads change only round-off."""
@@ -66,3 +67,52 @@ def test_flat_list_threads_change_only_round_off(door, make_scene, api, threads)
     assert worst < 1e-12
     assert worst > 0                     # the threaded pass ran
     assert np.array_equal(bx, cx) and np.array_equal(by, cy)   # deterministic per count
+
+
+# rows_kept (bench/RESULTS.md 37): 8 <= listed pairs per row < 24 - the same r_c 3 + skin 1 at
+# density 0.42 (~10 listed pairs per row, about half of them below r_c). Two species (mu_i
+# differs from row to row: the law's per-pair factor k mu_i) and, with the linear far field,
+# the smooth near/far split (the pairs weighted by S(r), the per-pair ci of rows_kept)
+KEPT_DENSITY = 0.42
+TWO_SPECIES = {"particles.n_species": 2, "particles.species_diameter": [1.0, 0.7],
+               "particles.mix_ratio": 0.5}
+
+
+def kept_scene(n: int) -> dict:
+    side = math.sqrt(n / KEPT_DENSITY)
+    return dict(FLAT, **TWO_SPECIES, **{"particles.n": n, "cell.width": side,
+                                        "cell.height": side, "particles.fill_height": side,
+                                        "protocol.h_start": side})
+
+
+@pytest.mark.parametrize("n", [400, N_BIG])
+@pytest.mark.parametrize("tail", ["frozen", "linear"])
+def test_kept_rows_plus_exact_tail_equal_all_pairs(door, make_scene, api, n, tail):
+    """Serial (N = 400) and threaded-size (N = 9000, > 5e4 pairs) lists of 8-24 pairs per row,
+    with the sharp (frozen) and the smooth (linear, tail_switch 1 D1) hand-over to the far
+    field refreshed every step: the all-pairs forces to round-off."""
+    over = kept_scene(n)
+    ref_x, ref_y = forces(door, make_scene, dict(over, **{"integration.neighbour": "all_pairs"}))
+    fx, fy = forces(door, make_scene, dict(over, **{"integration.tail": tail,
+                                                    "integration.tail_every": 1,
+                                                    "integration.tail_switch": 1.0}))
+    pairs = list_shape(api)
+    assert 8 * n <= pairs < 24 * n      # the rows_kept path
+    assert (pairs >= 5e4) == (n == N_BIG)
+    scale = np.max(np.hypot(ref_x, ref_y))
+    assert np.max(np.hypot(fx - ref_x, fy - ref_y)) < 1e-12 * scale
+
+
+def test_kept_rows_threads_change_only_round_off(door, make_scene, api):
+    over = kept_scene(N_BIG)
+    try:
+        api.set_threads(1)
+        ax, ay = forces(door, make_scene, over)
+        api.set_threads(2)
+        bx, by = forces(door, make_scene, over)
+    finally:
+        api.set_threads(1)
+    assert 8 * N_BIG <= list_shape(api) < 24 * N_BIG
+    scale = np.max(np.hypot(ax, ay))
+    worst = np.max(np.hypot(ax - bx, ay - by)) / scale
+    assert 0 < worst < 1e-12             # the threaded pass ran (spills), round-off only
