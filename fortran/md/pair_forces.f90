@@ -50,7 +50,8 @@ module pair_forces
   !> (exact; single 1.3-1.8x at every length)
   !> Below kept_row_pairs (and from mid_row_pairs on) the rows go by rows_kept (flat chunks,
   !> only the pairs below r_c: 1.05-1.22x rows_list at 10-14 listed pairs per row on Zen 4, but
-  !> 0.97x at ~34 with the split, the standard cycle; bench/RESULTS.md 37).
+  !> 0.97x on the standard cycle (split on, its rows up to ~30 pairs) when used up to 48, and at
+  !> ~36 pairs per row (r_c 7); bench/RESULTS.md 37).
   real(dp), parameter :: mid_row_pairs = 8, kept_row_pairs = 24, long_row_pairs = 48
   !> Lanes of the contiguous dipole loops (dipole_ranges): the sums on i are kept in this many
   !> fixed lanes (j = j0 + l - 1 goes to lane l), so the loop vectorises without reordering a
