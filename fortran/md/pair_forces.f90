@@ -631,7 +631,7 @@ contains
           js(nc + 1) = j
           r2s(nc + 1) = r2
           cs(nc + 1) = mu(j)*c_row
-          nc = nc + merge(1, 0, r2 < rk_keep)   ! (no branch: a third of the pairs go)
+          nc = nc + merge(1, 0, r2 < rk_keep)   ! (no branch: 35-45 % go at r_c 3-4 + skin 1)
         end do
       end do
       seg_lo(ns + 1) = nc + 1
