@@ -49,9 +49,9 @@ module pair_forces
   !> the rows measured 1.26-1.33x the ranges at 15 pairs per row, 1.05x at 35, 1.0x at 61
   !> (exact; single 1.3-1.8x at every length)
   !> Below kept_row_pairs (and from mid_row_pairs on) the rows go by rows_kept (flat chunks,
-  !> only the pairs below r_c: 1.05-1.22x rows_list at 10-14 listed pairs per row on Zen 4, but
-  !> 0.97x on the standard cycle (split on, its rows up to ~30 pairs) when used up to 48, and at
-  !> ~36 pairs per row (r_c 7); bench/RESULTS.md 37).
+  !> only the pairs below r_c: 1.05-1.22x rows_list at 10-14 listed pairs per row on Zen 4;
+  !> at ~36 (r_c 7) 0.96-0.97x and 1.11x in different A/Bs, so rows_list stays above 24;
+  !> bench/RESULTS.md 37).
   real(dp), parameter :: mid_row_pairs = 8, kept_row_pairs = 24, long_row_pairs = 48
   !> Lanes of the contiguous dipole loops (dipole_ranges): the sums on i are kept in this many
   !> fixed lanes (j = j0 + l - 1 goes to lane l), so the loop vectorises without reordering a
@@ -719,7 +719,7 @@ contains
   end subroutine close_rows
 
   !> Dipole rows i_lo..i_hi of a half neighbour list, row by row, every listed pair (for rows
-  !> of kept_row_pairs .. long_row_pairs: x_i, y_i, mu_i, wsin_i are scalars of the row, not
+  !> of kept_row_pairs .. long_row_pairs, and longer with pair_eval = 'single': x_i, y_i, mu_i, wsin_i are scalars of the row, not
   !> gathered as in rows_pairs; shorter rows go by rows_kept). Two passes per
   !> chunk: gather and evaluate (vectorisable), then accumulate on i and scatter on j
   !> (reactions on j > hi_direct to the spill arrays, as in rows_all).
@@ -1147,8 +1147,8 @@ contains
     else
       work = real(start(n + 1) - 1, dp)
     end if
-    ! dipole lists: the flat pair sequence when rows are short, row by row in between, by
-    ! ranges when they are long (bench/RESULTS.md sections 26, 35.6); single precision row by
+    ! dipole lists: the flat pair sequence when rows are short, the kept pairs in flat chunks
+    ! (rows_kept) and row by row in between, by ranges when they are long (bench/RESULTS.md sections 26, 35.6); single precision row by
     ! row (its 8-lane range loop measured 0.6-0.8x the rows on the AVX2 EPYC)
     mid_rows = work >= mid_row_pairs*real(max(1, n), dp)
     kept_rows = work < kept_row_pairs*real(max(1, n), dp)
