@@ -289,13 +289,17 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
                    help="LAMMPS pair style(s) for the r^-4 law")
     p.add_argument("--lammps-wall", choices=("table", "lepton"), default="table",
                    help="LAMMPS walls: fix wall/table spline (fast) or wall/lepton (analytic)")
-    p.add_argument("--repeat", type=int, default=1,
-                   help="timed runs per engine; the fastest is reported")
+    p.add_argument("--repeat", type=int, default=None,
+                   help="timed runs per engine: the fastest is reported (default 1); --grid: "
+                        "interleaved repeats, the median ratio reported (default 5)")
     p.add_argument("--grid", action="store_true",
                    help="the whole table N x r_cut (GRID_N x GRID_RC), timing only, set-up "
                         "included in a second column; steps per point from --grid-work")
     p.add_argument("--grid-work", type=float, default=2.0e7,
-                   help="particle-steps per grid point (steps = work/N, 50..1000)")
+                   help="particle-steps per grid point (steps = work/N, within "
+                        "--grid-min-steps .. --grid-max-steps)")
+    p.add_argument("--grid-min-steps", type=int, default=200, help="--grid: fewest steps S")
+    p.add_argument("--grid-max-steps", type=int, default=20000, help="--grid: most steps S")
     p.add_argument("--pair-eval", nargs="+", default=["exact"],
                    choices=("exact", "table", "single", "rsqrt"),
                    help="--grid: partsim's pair evaluations timed at every point (exact "
@@ -312,14 +316,29 @@ GRID_N = (2000, 10000, 40000, 100000)
 GRID_RC = (3.0, 4.0, 7.0, 10.0)
 
 
+def grid_steps(n: int, a: argparse.Namespace) -> int:
+    """Steps S of a grid point: the same work, --grid-work particle-steps, at every N, within
+    [--grid-min-steps, --grid-max-steps]."""
+    return int(min(a.grid_max_steps, max(a.grid_min_steps, round(a.grid_work / n))))
+
+
+def spread(v: Sequence[float]) -> tuple[float, float, float]:
+    """(median, min, max) of v."""
+    return float(np.median(v)), float(min(v)), float(max(v))
+
+
 def grid_point(lammps_cls: Any, a: argparse.Namespace, n: int, r_cut: float) -> dict[str, Any]:
-    """One (N, r_c) of the grid: per-step times (partsim set-up subtracted, LAMMPS Loop time)
-    and whole-run times with the set-up included (partsim: the wall time of the run without
-    frames; LAMMPS: creating the instance, reading the data, the runs' set-up and the loop).
-    Every pair evaluation of --pair-eval is timed (its ratio and the largest relative force
-    error partsim measured at load, over [min_distance, r_c + skin]) next to LAMMPS' table's
-    largest relative force error (pair_write over [--table-lo, r_c))."""
-    steps = int(min(1000, max(50, a.grid_work / n)))
+    """One (N, r_c) of the grid, measured as bench/lj_lammps.py measures the LJ box (RESULTS
+    35.11): S = grid_steps(n) steps; --repeat R repeats, each interleaving LAMMPS 1 step and S
+    steps (fresh instances from the same data file), then partsim 1 and S steps for every
+    --pair-eval; per step = (cost_S - cost_1) / (S - 1) for both engines (CPU: partsim's engine
+    child by getrusage, LAMMPS' process time around `run`), the ratio LAMMPS / partsim per
+    repeat, and its median (min, max) over the R repeats. Set-up included: the whole run's CPU
+    of each (partsim: the engine process; LAMMPS: the instance, the data file, the run), the
+    median ratio. Every pair evaluation's largest relative force error as partsim measured it
+    at load (over [min_distance, r_c + skin]) is given next to LAMMPS' table's (pair_write over
+    [--table-lo, r_c))."""
+    steps = grid_steps(n, a)
     out = a.out / f"grid_{n}_{r_cut:g}"
     out.mkdir(parents=True, exist_ok=True)
     scene = bench_scene(n, a.spacing, r_cut, a.skin, a.dt, steps, 0, a.seed)
@@ -327,24 +346,14 @@ def grid_point(lammps_cls: Any, a: argparse.Namespace, n: int, r_cut: float) -> 
     init, _, _ = frame_arrays(common.run_engine(common.with_steps(
         scene.with_overrides({"output.frame_every": 1}), 1, a.dt), out / "p_init",
         threads=1).frames(), 0)
-    def cpu_run(sc: Any, tag: str) -> tuple[float, float]:
-        """(wall, CPU) seconds of one partsim run without frames (CPU: getrusage, child)."""
-        r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
-        t = common.timing_of(common.run_engine(sc, out / tag, threads=1).meta)
-        r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
-        return t.wall_s, (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)
 
-    evals: dict[str, tuple[tuple[float, float], tuple[float, float], float]] = {}
-    for ev in a.pair_eval:
-        sc = scene.with_overrides({"integration.pair_eval": ev})
-        one = min((cpu_run(common.with_steps(sc, 1, a.dt), f"p1_{ev}_{k}")
-                   for k in range(a.repeat)), key=lambda t: t[1])
-        ours = min((cpu_run(sc, f"pS_{ev}_{k}") for k in range(a.repeat)), key=lambda t: t[1])
-        err = json.loads((out / f"pS_{ev}_0" / "run.json").read_text())["pair_max_rel_error"]
-        evals[ev] = (one, ours, float(err))
-    one, ours, _ = evals[a.pair_eval[0]]
-    pairs = common.timing_of(json.loads((out / f"pS_{a.pair_eval[0]}_0" / "run.json")
-                                        .read_text())).pairs_per_step
+    def cpu_run(sc: Any, tag: str) -> float:
+        """CPU seconds of one partsim run without frames (getrusage of the engine child)."""
+        r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+        common.run_engine(sc, out / tag, threads=1)
+        r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+        return (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)
+
     side = box_side(n, a.spacing)
     consts = common.model_constants(scene)
     data, table, wall_table = out / "initial.data", out / "dipole.table", out / "wall.table"
@@ -353,40 +362,52 @@ def grid_point(lammps_cls: Any, a: argparse.Namespace, n: int, r_cut: float) -> 
     wall_table.write_text(wall_table_text(consts["k_wall"], a.table_lo, side, a.table_points))
     cmds = lammps_commands(data, table, wall_table, "table", a.lammps_wall, consts["k_pair"],
                            consts["k_wall"], side, r_cut, a.skin, a.dt, a.table_points)
-    best: LammpsResult | None = None
+    scenes = {ev: scene.with_overrides({"integration.pair_eval": ev}) for ev in a.pair_eval}
+    lmp_step: list[float] = []
+    lmp_total: list[float] = []
+    ours_step: dict[str, list[float]] = {ev: [] for ev in a.pair_eval}
+    ours_total: dict[str, list[float]] = {ev: [] for ev in a.pair_eval}
     for k in range(a.repeat):
-        res = run_lammps(lammps_cls, out, cmds, steps, a.table_lo, r_cut, with_checks=False,
-                         tag=f"table.{k}")
-        if best is None or res.run_cpu_s < best.run_cpu_s:
-            best = res
-    assert best is not None
+        l1 = run_lammps(lammps_cls, out, cmds, 1, a.table_lo, r_cut, False, f"table1.{k}")
+        ls = run_lammps(lammps_cls, out, cmds, steps, a.table_lo, r_cut, False, f"table.{k}")
+        lmp_step.append((ls.run_cpu_s - l1.run_cpu_s) / (steps - 1))
+        lmp_total.append(ls.total_cpu_s)
+        for ev, sc in scenes.items():
+            c1 = cpu_run(common.with_steps(sc, 1, a.dt), f"p1_{ev}_{k}")
+            cs = cpu_run(sc, f"pS_{ev}_{k}")
+            ours_step[ev].append((cs - c1) / (steps - 1))
+            ours_total[ev].append(cs)
     # LAMMPS' own table error (pair_write, a 1-step instance)
     check = run_lammps(lammps_cls, out, cmds, 1, a.table_lo, r_cut, with_checks=True,
                        tag="table.check")
     assert check.table_rows is not None
     lmp_err = force_error(check.table_rows, consts["k_pair"], a.table_lo)
-    ours_step = (ours[1] - one[1]) / (steps - 1)      # CPU, set-up subtracted
-    lmp_step = best.run_cpu_s / steps                 # CPU of `run S` (one list build of set-up)
-    extra: dict[str, Any] = {"lammps_table_max_rel_error": lmp_err,
-                             f"partsim_max_rel_error_{a.pair_eval[0]}": evals[a.pair_eval[0]][2]}
-    for ev in a.pair_eval[1:]:
-        e_one, e_ours, e_err = evals[ev]
-        e_step = (e_ours[1] - e_one[1]) / (steps - 1)
-        extra.update({f"partsim_cpu_s_per_step_{ev}": e_step,
-                      f"ratio_per_step_{ev}": lmp_step / e_step,
-                      f"partsim_max_rel_error_{ev}": e_err})
-    return {"N": n, "r_cut": r_cut, "steps": steps, "pairs_per_step": pairs, **extra,
-            "partsim_cpu_s_per_step": ours_step, "lammps_cpu_s_per_step": lmp_step,
-            "ratio_per_step": lmp_step / ours_step,
-            "partsim_total_cpu_s": ours[1], "lammps_total_cpu_s": best.total_cpu_s,
-            "ratio_with_setup": best.total_cpu_s / ours[1],
-            "partsim_setup_cpu_s": one[1], "lammps_loop_wall_s_per_step":
-                best.log["loop_s"] / steps, "partsim_wall_s_per_step":
-                (ours[0] - one[0]) / (steps - 1)}
+    first = a.pair_eval[0]
+    meta = json.loads((out / f"pS_{first}_0" / "run.json").read_text())
+    row: dict[str, Any] = {"N": n, "r_cut": r_cut, "steps": steps, "repeats": a.repeat,
+                           "pairs_per_step": common.timing_of(meta).pairs_per_step,
+                           "lammps_table_max_rel_error": lmp_err,
+                           "lammps_cpu_s_per_step": spread(lmp_step)[0]}
+    for ev in a.pair_eval:
+        sfx = "" if ev == first else f"_{ev}"
+        err = json.loads((out / f"pS_{ev}_0" / "run.json").read_text())["pair_max_rel_error"]
+        med, lo, hi = spread([lm / ps for lm, ps in zip(lmp_step, ours_step[ev])])
+        row.update({f"partsim_max_rel_error_{ev}": float(err),
+                    f"partsim_cpu_s_per_step{sfx}": spread(ours_step[ev])[0],
+                    f"ratio_per_step{sfx}": med, f"ratio_per_step{sfx}_min": lo,
+                    f"ratio_per_step{sfx}_max": hi,
+                    f"ratio_with_setup{sfx}": spread([lm / ps for lm, ps in
+                                                      zip(lmp_total, ours_total[ev])])[0]})
+    print(f"grid N {n} r_c {r_cut:g} S {steps}: " + ", ".join(
+        f"{ev} {row['ratio_per_step' + ('' if ev == first else '_' + ev)]:.2f}"
+        for ev in a.pair_eval), flush=True)
+    return row
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     a = parse_args(argv)
+    if a.repeat is None:
+        a.repeat = 5 if a.grid else 1
     os.environ["OMP_NUM_THREADS"] = "1"
     try:
         lammps_cls = common.lammps_factory()
