@@ -43,6 +43,7 @@ module engine
     character(len=:), allocatable :: scene_path
     logical :: writing = .false.        !< a run directory is open
     logical :: need_velocity = .false.  !< some force depends on velocity
+    logical :: mu_one = .false.         !< every moment factor mu(i) equal (one species)
     real(dp) :: area = 0                !< total particle area [D1^2]
     type(start_t) :: start              !< &particles start_file as read (n = 0: the grid)
   end type sim_t
@@ -120,6 +121,9 @@ contains
       area = area + 0.25_dp*pi*sim%m%sp_diam(sim%s%species(k))**2
     end do
     sim%area = area
+    ! mu follows the species (initial.f90) and never changes in a run: one test here
+    sim%mu_one = sim%s%n > 0
+    if (sim%mu_one) sim%mu_one = all(sim%s%mu == sim%s%mu(1))
     call protocol_build(sim%sc, sim%m, area, sim%p)
     if (sim%m%piston_mode == piston_prescribed .and. sim%p%hf <= 1.0_dp) then
       call set_error(st, exit_bad_input, sim%scene_path//': &protocol phi_final: gives hf <= 1 D1')
@@ -236,11 +240,12 @@ contains
       if (allocated(nl%rstart) .and. nl%strategy == nb_verlet) then
         call pair_forces_list(s%n, s%x, s%y, s%mu, s%wsin, m%k_pair, m%r_cut**2, m%shift4, &
              nl%check, r3, nl%start, nl%nbr, s%fx, s%fy, s%s3, r2min, own=nl%own, &
-             split=m%split, rstart=nl%rstart, rlo=nl%rlo, rhi=nl%rhi, tab=m%tab)
+             split=m%split, rstart=nl%rstart, rlo=nl%rlo, rhi=nl%rhi, tab=m%tab, &
+             mu_one=sim%mu_one)
       else
         call pair_forces_list(s%n, s%x, s%y, s%mu, s%wsin, m%k_pair, m%r_cut**2, m%shift4, &
              nl%check, r3, nl%start, nl%nbr, s%fx, s%fy, s%s3, r2min, own=nl%own, split=m%split, &
-             tab=m%tab)
+             tab=m%tab, mu_one=sim%mu_one)
       end if
       nl%evaluated = nl%evaluated + nl%pairs
     end associate

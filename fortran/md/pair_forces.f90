@@ -420,7 +420,7 @@ contains
   !> are skipped when check is set (the thesis variant r_c = r_v uses every listed pair);
   !> with a split (dipole), pairs are weighted by its near side S(r).
   subroutine pair_forces_list(n, x, y, mu, wsin, k_pair, rc2, shift4, check, with_r3, &
-       start, nbr, fx, fy, s3, r2min, law, own, split, rstart, rlo, rhi, tab)
+       start, nbr, fx, fy, s3, r2min, law, own, split, rstart, rlo, rhi, tab, mu_one)
     integer, intent(in) :: n
     real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair
     real(dp), intent(in) :: rc2       !< squared cut-off [D1^2]
@@ -437,15 +437,24 @@ contains
     !> the rows are long
     integer, intent(in), optional, contiguous :: rstart(:), rlo(:), rhi(:)
     type(pair_table_t), intent(in), optional :: tab   !< the law's table (used when on)
+    !> every mu(i) equals mu(1) (one species): rows_list (24-48 listed pairs per row) then
+    !> takes mu_j as mu_i instead of a gather per pair (the same values, the same bits;
+    !> 1.07-1.13x at r_c 7, N >= 1e4; in rows_kept and rows_pairs it measured slower:
+    !> bench/RESULTS.md 38.3)
+    logical, intent(in), optional :: mu_one
     type(split_t) :: sp
+    logical :: one
+    one = .false.
+    if (present(mu_one)) one = mu_one
     if (present(split)) sp = split
     if (present(rstart) .and. check .and. .not. present(law)) then
       call threaded_pass(mode_list, kernel_dipole, lj_law_t(), sp, n, x, y, mu, wsin, k_pair, &
            0.0_dp, rc2, shift4, check, with_r3, start, nbr, fx, fy, s3, r2min, own, rstart, rlo, &
-           rhi, tab=tab)
+           rhi, tab=tab, mu_one=one)
     else
       call threaded_pass(mode_list, kernel_of(law), law_of(law), sp, n, x, y, mu, wsin, k_pair, &
-           0.0_dp, rc2, shift4, check, with_r3, start, nbr, fx, fy, s3, r2min, own, tab=tab)
+           0.0_dp, rc2, shift4, check, with_r3, start, nbr, fx, fy, s3, r2min, own, tab=tab, &
+           mu_one=one)
     end if
   end subroutine pair_forces_list
 
@@ -630,7 +639,7 @@ contains
           low = min(low, r2)
           js(nc + 1) = j
           r2s(nc + 1) = r2
-          cs(nc + 1) = mu(j)*c_row
+          cs(nc + 1) = mu(j)*c_row   ! (mu_j from a register with mu_one: 0.92-0.99x, RESULTS 38.3)
           nc = nc + merge(1, 0, r2 < rk_keep)   ! (no branch: 35-45 % go at r_c 3-4 + skin 1)
         end do
       end do
@@ -724,11 +733,12 @@ contains
   !> chunk: gather and evaluate (vectorisable), then accumulate on i and scatter on j
   !> (reactions on j > hi_direct to the spill arrays, as in rows_all).
   subroutine rows_list(sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, shift4, &
-       check, with_r3, start, nbr, fx, fy, s3, sx, sy, ss, r2low, tab)
+       check, with_r3, mu_one, start, nbr, fx, fy, s3, sx, sy, ss, r2low, tab)
     type(split_t), intent(in) :: sp
     integer, intent(in) :: i_lo, i_hi, hi_direct, n
     real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair, rc2, shift4
     logical, intent(in) :: check, with_r3
+    logical, intent(in) :: mu_one   !< every mu(j) = mu(1): no gather of mu_j
     integer, intent(in) :: start(n + 1), nbr(*)
     real(dp), intent(inout) :: fx(n), fy(n), s3(n)
     real(dp), intent(inout) :: sx(*), sy(*), ss(*)
@@ -759,8 +769,9 @@ contains
           dys(m) = yi - y(j)
           r2s(m) = dxs(m)*dxs(m) + dys(m)*dys(m)
           low = min(low, r2s(m))
-          cs(m) = mu(j)
+          if (.not. mu_one) cs(m) = mu(j)   ! (loop-invariant: unswitched)
         end do
+        if (mu_one) cs(1:nk) = mu(i)
         cis(1:nk) = ci
         associate (c => cs, r3 => r3s, ci => cis, w3 => 1.0_dp)   ! the law
           include 'dipole_eval.inc'
@@ -1037,7 +1048,7 @@ contains
           wi = wsin(i)
           ax = 0; ay = 0; a3 = 0
         end if
-        c = ci*mu(j)*pw(m, 3)
+        c = ci*mu(j)*pw(m, 3)   ! (mu_j from a register with mu_one: 0.95-0.97x, RESULTS 38.3)
         gx = c*pw(m, 1)
         gy = c*pw(m, 2)
         ax = ax + gx
@@ -1122,7 +1133,7 @@ contains
   !> spills are added in thread order and reset to zero. The result does not
   !> depend on scheduling, and on the thread count only through round-off.
   subroutine threaded_pass(mode, kernel, l, sp, n, x, y, mu, wsin, k_pair, r2_min, rc2, &
-       shift4, check, with_r3, start, nbr, fx, fy, s3, r2low, own, rstart, rlo, rhi, tab)
+       shift4, check, with_r3, start, nbr, fx, fy, s3, r2low, own, rstart, rlo, rhi, tab, mu_one)
     !$ use omp_lib, only: omp_get_max_threads, omp_get_thread_num
     integer, intent(in) :: mode, kernel, n
     type(lj_law_t), intent(in) :: l
@@ -1135,11 +1146,15 @@ contains
     integer, intent(in), optional, contiguous :: own(:)   !< row of each listed pair (lists only)
     integer, intent(in), optional, contiguous :: rstart(:), rlo(:), rhi(:)   !< the list's ranges
     type(pair_table_t), intent(in), optional :: tab   !< the law's table (used when on)
+    logical, intent(in), optional :: mu_one   !< every mu(i) equals mu(1) (pair_forces_list)
     real(dp) :: low(64)
+    logical :: one
     integer :: nt, t, lo, hi, i, u
     integer :: bound(0:64)
     real(dp) :: work, dummy(1, 3)
     logical :: mid_rows, kept_rows, long_rows
+    one = .false.
+    if (present(mu_one)) one = mu_one
     nt = 1
     ! threads only pay off with enough pairs per step (fork/join costs ~ microseconds)
     if (mode == mode_all) then
@@ -1213,7 +1228,7 @@ contains
              shift4, check, with_r3, start, nbr, ax, ay, a3, bx, by, b3, lw, tab)
       else if (kernel == kernel_dipole .and. mid_rows) then
         call rows_list(sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, &
-             shift4, check, with_r3, start, nbr, ax, ay, a3, bx, by, b3, lw, tab)
+             shift4, check, with_r3, one, start, nbr, ax, ay, a3, bx, by, b3, lw, tab)
       else
         call rows_pairs(kernel, l, sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, &
              shift4, check, with_r3, start, nbr, own, ax, ay, a3, bx, by, b3, lw, tab)
