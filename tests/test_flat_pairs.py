@@ -120,15 +120,15 @@ def test_kept_rows_threads_change_only_round_off(door, make_scene, api):
 
 # One species (every mu equal): rows_list then takes mu_j as mu_i (the engine's mu_one,
 # bench/RESULTS.md 38.3), two species gather it per pair. Both against all pairs, for rows_list
-# (r_c 4 + skin 1 at density 0.8: 24-48 listed pairs per row) and rows_kept (r_c 3 + skin 1 at
+# (r_c 5 + skin 1 at density 0.6: 24-48 listed pairs per row) and rows_kept (r_c 3 + skin 1 at
 # density 0.42: 8-24, one code path for both)
 @pytest.mark.parametrize("two", [False, True], ids=["one_species", "two_species"])
 @pytest.mark.parametrize("r_cut, density, lo, hi", [(3.0, KEPT_DENSITY, 8, 24),
-                                                    (4.0, 0.8, 24, 48)],
+                                                    (5.0, 0.6, 24, 48)],
                          ids=["rows_kept", "rows_list"])
 def test_row_kernels_with_one_and_two_species_equal_all_pairs(door, make_scene, api, two, r_cut,
                                                               density, lo, hi):
-    n = 400
+    n = 900
     side = math.sqrt(n / density)
     over = dict(FLAT, **(TWO_SPECIES if two else {}),
                 **{"particles.n": n, "cell.width": side, "cell.height": side,
