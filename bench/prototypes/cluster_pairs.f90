@@ -64,9 +64,9 @@ contains
     end do
   end subroutine
 
-  subroutine build_pairs(ncl, xc, yc, rl, ccol, cstart, clist, npairs)
+  subroutine build_pairs(ncl, xc, yc, rl, w, ccol, cstart, clist, npairs)
     integer, intent(in) :: ncl, ccol(ncl)
-    real(dp), intent(in) :: xc(cm,ncl), yc(cm,ncl), rl
+    real(dp), intent(in) :: xc(cm,ncl), yc(cm,ncl), rl, w   !< list radius, column width [D1]
     integer, allocatable, intent(out) :: cstart(:), clist(:)
     integer, intent(out) :: npairs
     real(dp) :: lo(2,ncl), hi(2,ncl), dx, dy
@@ -84,7 +84,7 @@ contains
       do b = a, ncl   ! naive scan (prototype): columns ordered, break when column too far
         dx = max(0.0_dp, lo(1,b) - hi(1,a), lo(1,a) - hi(1,b))
         if (dx >= rl) then
-          if (lo(1,b) > hi(1,a) + rl .and. ccol(b) > ccol(a) + 3) exit
+          if (ccol(b) > ccol(a) + ceiling(rl/w) + 1) exit   ! every later column is beyond r_l
           cycle
         end if
         dy = max(0.0_dp, lo(2,b) - hi(2,a), lo(2,a) - hi(2,b))
@@ -214,7 +214,7 @@ program proto
       end if
     end do
   end do
-  call build_pairs(ncl, xc, yc, rl, ccol, cstart, clist, npairs)
+  call build_pairs(ncl, xc, yc, rl, w, ccol, cstart, clist, npairs)
   allocate(xt(8,ncl), yt(8,ncl), mt(8,ncl), ftx(8,ncl), fty(8,ncl))
   do a = 1, ncl
     xt(1:4,a) = xc(:,a); xt(5:8,a) = xc(:,a); yt(1:4,a) = yc(:,a); yt(5:8,a) = yc(:,a)
@@ -247,6 +247,6 @@ program proto
         if (perm(ii,a) > 0) err = max(err, abs(fxc(ii,a)-rx(perm(ii,a))), abs(fyc(ii,a)-ry(perm(ii,a))))
       end do
     end do
-    print *, 'max abs err / fmax ', err/fmax
+    print *, 'max abs err / max |f| ', err/fmax, ' / rms |f| ', err/sqrt(sum(rx**2 + ry**2)/n)
   end if
 end program
