@@ -34,6 +34,12 @@ Order of work:
  4. Timing: LAMMPS "Loop time" (excludes its setup); partsim run.json
     wall_time_s/S and the setup-subtracted (wall_S - wall_1)/(S - 1).
 
+--grid (the N x r_c table, timing only): per point S = --grid-work / N steps (2e7
+particle-steps: 10 000 at N 2e3, 200 at 1e5), --repeat R (default 5) repeats, each LAMMPS 1 and
+S steps (fresh instances) then partsim 1 and S steps per --pair-eval, per step = (cost_S -
+cost_1) / (S - 1) for both (CPU), the median ratio and its min - max over the repeats
+(bench/RESULTS.md 38.1; before it: min(1000, work/N) steps, the best of R runs, not interleaved).
+
 Writes its files under bench/out/lammps_compare/ (or --out). Exit 0 with a
 skip message when LAMMPS cannot be imported.
 """
