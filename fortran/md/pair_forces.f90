@@ -437,10 +437,11 @@ contains
     !> the rows are long
     integer, intent(in), optional, contiguous :: rstart(:), rlo(:), rhi(:)
     type(pair_table_t), intent(in), optional :: tab   !< the law's table (used when on)
-    !> every mu(i) equals mu(1) (one species): rows_list (24-48 listed pairs per row) then
-    !> takes mu_j as mu_i instead of a gather per pair (the same values, the same bits;
-    !> 1.07-1.13x at r_c 7, N >= 1e4; in rows_kept and rows_pairs it measured slower:
-    !> bench/RESULTS.md 38.3)
+    !> every mu(i) equals mu(1) (one species): rows_list (24-48 listed pairs per row) takes
+    !> mu_j as mu_i instead of a gather per pair, rows_kept (8-24) fills the chunk's factors
+    !> once instead of a load and a product per listed pair (the same values, the same bits;
+    !> ~1.07x at r_c 7, 0.97-1.08x at r_c 3-4; in rows_pairs' sums it measured slower:
+    !> bench/RESULTS.md 38.3, 38.7)
     logical, intent(in), optional :: mu_one
     type(split_t) :: sp
     logical :: one
@@ -581,11 +582,12 @@ contains
   !> arrays, as in rows_all). The same operations on every acting pair, in the same order, as
   !> one row at a time over every listed pair.
   subroutine rows_kept(sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, shift4, &
-       check, with_r3, start, nbr, fx, fy, s3, sx, sy, ss, r2low, tab)
+       check, with_r3, mu_one, start, nbr, fx, fy, s3, sx, sy, ss, r2low, tab)
     type(split_t), intent(in) :: sp
     integer, intent(in) :: i_lo, i_hi, hi_direct, n
     real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair, rc2, shift4
     logical, intent(in) :: check, with_r3
+    logical, intent(in) :: mu_one   !< every mu(j) = mu(1): no load of mu_j per pair
     integer, intent(in) :: start(n + 1), nbr(*)
     real(dp), intent(inout) :: fx(n), fy(n), s3(n)
     real(dp), intent(inout) :: sx(*), sy(*), ss(*)
@@ -639,10 +641,12 @@ contains
           low = min(low, r2)
           js(nc + 1) = j
           r2s(nc + 1) = r2
-          cs(nc + 1) = mu(j)*c_row   ! (mu_j from a register with mu_one: 0.92-0.99x, RESULTS 38.3)
+          if (.not. mu_one) cs(nc + 1) = mu(j)*c_row   ! (loop-invariant: unswitched)
           nc = nc + merge(1, 0, r2 < rk_keep)   ! (no branch: 35-45 % go at r_c 3-4 + skin 1)
         end do
       end do
+      ! one species: mu_j = mu_i = mu(i_lo), and c_row the same for every row: one fill
+      if (mu_one) cs(1:nc) = mu(i_lo)*merge(1.0_dp, k_pair*mu(i_lo), sp%on)
       seg_lo(ns + 1) = nc + 1
       ! the law: c(m) = ((S ci(m)) c(m)) e5, so without a split (S = 1) k mu_i is in c(m)
       ! already (c_row: the same product) and ci(m) = 1; with one, ci(m) = k mu_i per pair
@@ -1225,7 +1229,7 @@ contains
              with_r3, rstart, rlo, rhi, ax, ay, a3, bx, by, b3, lw, tab)
       else if (kernel == kernel_dipole .and. mid_rows .and. kept_rows) then
         call rows_kept(sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, &
-             shift4, check, with_r3, start, nbr, ax, ay, a3, bx, by, b3, lw, tab)
+             shift4, check, with_r3, one, start, nbr, ax, ay, a3, bx, by, b3, lw, tab)
       else if (kernel == kernel_dipole .and. mid_rows) then
         call rows_list(sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, &
              shift4, check, with_r3, one, start, nbr, ax, ay, a3, bx, by, b3, lw, tab)
