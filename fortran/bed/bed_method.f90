@@ -10,7 +10,7 @@ module bed_method
   use start_file, only: start_json, check_start_crc
   use, intrinsic :: iso_fortran_env, only: int8
   use scene_input, only: int_str, json_real
-  use engine, only: sim_t, sim_load, sim_step, pairs_per_step
+  use engine, only: sim_t, sim_load, sim_step, pairs_per_step, sim_note_mu
   use protocol, only: phase_names
   use scene, only: scene_keys
   use pair_table, only: table_json
@@ -134,6 +134,7 @@ contains
     type(status_t), intent(inout) :: st
     call checkpoint_restore(u, self%sim%s, self%sim%nl, self%sim%pst, st)
     if (st%code /= 0) return
+    call sim_note_mu(self%sim)
     call check_start_crc(u, self%sim%start, st)
   end subroutine restore_state
 

@@ -30,7 +30,7 @@ module engine
   private
 
   public :: sim_t, sim_load, sim_forces, sim_step, sim_energy, pairs_per_step, piston_energy, &
-       time_pair_pass
+       time_pair_pass, sim_note_mu
 
   type :: sim_t
     type(scene_t) :: sc
@@ -105,6 +105,14 @@ contains
     end associate
   end subroutine build_pair_table
 
+  !> sim%mu_one from the state's moment factors (every mu(i) equal: one species). mu follows the
+  !> species (initial.f90) and no step changes it: called after placing and after a restore.
+  subroutine sim_note_mu(sim)
+    type(sim_t), intent(inout) :: sim
+    sim%mu_one = sim%s%n > 0
+    if (sim%mu_one) sim%mu_one = all(sim%s%mu == sim%s%mu(1))
+  end subroutine sim_note_mu
+
   subroutine build_rest(sim, st)
     type(sim_t), intent(inout) :: sim
     type(status_t), intent(inout) :: st
@@ -121,9 +129,7 @@ contains
       area = area + 0.25_dp*pi*sim%m%sp_diam(sim%s%species(k))**2
     end do
     sim%area = area
-    ! mu follows the species (initial.f90) and never changes in a run: one test here
-    sim%mu_one = sim%s%n > 0
-    if (sim%mu_one) sim%mu_one = all(sim%s%mu == sim%s%mu(1))
+    call sim_note_mu(sim)
     call protocol_build(sim%sc, sim%m, area, sim%p)
     if (sim%m%piston_mode == piston_prescribed .and. sim%p%hf <= 1.0_dp) then
       call set_error(st, exit_bad_input, sim%scene_path//': &protocol phi_final: gives hf <= 1 D1')
