@@ -11,6 +11,7 @@ import ctypes
 import math
 import os
 import platform
+import statistics
 import sys
 import tempfile
 from dataclasses import dataclass
@@ -50,6 +51,17 @@ def machine_line() -> str:
 
 
 # ------------------------------------------------------------------ scenes
+
+def per_step(c1: float, cs: float, s: int) -> float:
+    """Per-step cost with the set-up subtracted, (cost_S - cost_1) / (S - 1) [s]: the runs of
+    1 and of S steps from the same state (bench/lj_lammps.py, lammps_compare.py --grid)."""
+    return (cs - c1) / (s - 1)
+
+
+def spread(v: Sequence[float]) -> tuple[float, float, float]:
+    """(median, min, max) of v."""
+    return float(statistics.median(v)), float(min(v)), float(max(v))
+
 
 def with_steps(scene: Any, steps: int, dt: float) -> Any:
     """A copy of ``scene`` with time step dt and t_end = steps*dt (fixed/none piston)."""

@@ -328,11 +328,6 @@ def grid_steps(n: int, a: argparse.Namespace) -> int:
     return int(min(a.grid_max_steps, max(a.grid_min_steps, round(a.grid_work / n))))
 
 
-def spread(v: Sequence[float]) -> tuple[float, float, float]:
-    """(median, min, max) of v."""
-    return float(np.median(v)), float(min(v)), float(max(v))
-
-
 def grid_point(lammps_cls: Any, a: argparse.Namespace, n: int, r_cut: float) -> dict[str, Any]:
     """One (N, r_c) of the grid, measured as bench/lj_lammps.py measures the LJ box (RESULTS
     35.11): S = grid_steps(n) steps; --repeat R repeats, each interleaving LAMMPS 1 step and S
@@ -376,12 +371,12 @@ def grid_point(lammps_cls: Any, a: argparse.Namespace, n: int, r_cut: float) -> 
     for k in range(a.repeat):
         l1 = run_lammps(lammps_cls, out, cmds, 1, a.table_lo, r_cut, False, f"table1.{k}")
         ls = run_lammps(lammps_cls, out, cmds, steps, a.table_lo, r_cut, False, f"table.{k}")
-        lmp_step.append((ls.run_cpu_s - l1.run_cpu_s) / (steps - 1))
+        lmp_step.append(common.per_step(l1.run_cpu_s, ls.run_cpu_s, steps))
         lmp_total.append(ls.total_cpu_s)
         for ev, sc in scenes.items():
             c1 = cpu_run(common.with_steps(sc, 1, a.dt), f"p1_{ev}_{k}")
             cs = cpu_run(sc, f"pS_{ev}_{k}")
-            ours_step[ev].append((cs - c1) / (steps - 1))
+            ours_step[ev].append(common.per_step(c1, cs, steps))
             ours_total[ev].append(cs)
     # LAMMPS' own table error (pair_write, a 1-step instance)
     check = run_lammps(lammps_cls, out, cmds, 1, a.table_lo, r_cut, with_checks=True,
@@ -393,16 +388,16 @@ def grid_point(lammps_cls: Any, a: argparse.Namespace, n: int, r_cut: float) -> 
     row: dict[str, Any] = {"N": n, "r_cut": r_cut, "steps": steps, "repeats": a.repeat,
                            "pairs_per_step": common.timing_of(meta).pairs_per_step,
                            "lammps_table_max_rel_error": lmp_err,
-                           "lammps_cpu_s_per_step": spread(lmp_step)[0]}
+                           "lammps_cpu_s_per_step": common.spread(lmp_step)[0]}
     for ev in a.pair_eval:
         sfx = "" if ev == first else f"_{ev}"
         err = json.loads((out / f"pS_{ev}_0" / "run.json").read_text())["pair_max_rel_error"]
-        med, lo, hi = spread([lm / ps for lm, ps in zip(lmp_step, ours_step[ev])])
+        med, lo, hi = common.spread([lm / ps for lm, ps in zip(lmp_step, ours_step[ev])])
         row.update({f"partsim_max_rel_error_{ev}": float(err),
-                    f"partsim_cpu_s_per_step{sfx}": spread(ours_step[ev])[0],
+                    f"partsim_cpu_s_per_step{sfx}": common.spread(ours_step[ev])[0],
                     f"ratio_per_step{sfx}": med, f"ratio_per_step{sfx}_min": lo,
                     f"ratio_per_step{sfx}_max": hi,
-                    f"ratio_with_setup{sfx}": spread([lm / ps for lm, ps in
+                    f"ratio_with_setup{sfx}": common.spread([lm / ps for lm, ps in
                                                       zip(lmp_total, ours_total[ev])])[0]})
     print(f"grid N {n} r_c {r_cut:g} S {steps}: " + ", ".join(
         f"{ev} {row['ratio_per_step' + ('' if ev == first else '_' + ev)]:.2f}"
@@ -414,6 +409,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     a = parse_args(argv)
     if a.repeat is None:
         a.repeat = 5 if a.grid else 1
+    if a.repeat < 1 or a.grid_min_steps < 2 or a.grid_max_steps < a.grid_min_steps:
+        print(f"error: --repeat {a.repeat} must be >= 1 and --grid-min-steps "
+              f"{a.grid_min_steps} .. --grid-max-steps {a.grid_max_steps} a range from 2 on "
+              "(the 1-step run is subtracted)", file=sys.stderr)
+        return 2
     os.environ["OMP_NUM_THREADS"] = "1"
     try:
         lammps_cls = common.lammps_factory()

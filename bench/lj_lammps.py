@@ -158,11 +158,6 @@ def lammps(lmp_cls: Any, frame0: Any, side: float, steps: int, a: argparse.Names
     return {"log": parse_log(log.read_text()), "x": x, "cpu": cpu, "wall": wall}
 
 
-def per_step(c1: float, cs: float, s: int) -> float:
-    """Per-step cost with the set-up subtracted, (cost_S - cost_1) / (S - 1) [s]."""
-    return (cs - c1) / (s - 1)
-
-
 def children_cpu() -> float:
     """User + system CPU seconds of the finished child processes (the engine runs)."""
     r = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -190,11 +185,6 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
                    choices=("exact", "table", "single", "rsqrt"))
     p.add_argument("--csv", default="lj_lammps.csv", help="bench/results/ name")
     return p.parse_args(argv)
-
-
-def spread(v: Sequence[float]) -> tuple[float, float, float]:
-    """(median, min, max) of v."""
-    return float(np.median(v)), float(min(v)), float(max(v))
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -227,14 +217,16 @@ def main(argv: Sequence[str] | None = None) -> int:
             for ev in a.pair_eval:
                 ps1[ev].append(partsim_timed(n, 1, a, a.out, ev))
                 pss[ev].append(partsim_timed(n, s, a, a.out, ev))
-        lm_cpu = [per_step(x["cpu"], y["cpu"], s) for x, y in zip(lm1, lms)]
-        lm_wall = [per_step(x["wall"], y["wall"], s) for x, y in zip(lm1, lms)]
+        lm_cpu = [common.per_step(x["cpu"], y["cpu"], s) for x, y in zip(lm1, lms)]
+        lm_wall = [common.per_step(x["wall"], y["wall"], s) for x, y in zip(lm1, lms)]
         for ev in a.pair_eval:
-            ps_cpu = [per_step(x["cpu"], y["cpu"], s) for x, y in zip(ps1[ev], pss[ev])]
-            ps_wall = [per_step(x["wall"], y["wall"], s) for x, y in zip(ps1[ev], pss[ev])]
-            r_cpu = spread([lc / pc for lc, pc in zip(lm_cpu, ps_cpu)])
-            r_wall = spread([lw / pw for lw, pw in zip(lm_wall, ps_wall)])
-            r_incl = spread([y["cpu"] / p["cpu"] for y, p in zip(lms, pss[ev])])
+            ps_cpu = [common.per_step(x["cpu"], y["cpu"], s)
+                      for x, y in zip(ps1[ev], pss[ev])]
+            ps_wall = [common.per_step(x["wall"], y["wall"], s)
+                       for x, y in zip(ps1[ev], pss[ev])]
+            r_cpu = common.spread([lc / pc for lc, pc in zip(lm_cpu, ps_cpu)])
+            r_wall = common.spread([lw / pw for lw, pw in zip(lm_wall, ps_wall)])
+            r_incl = common.spread([y["cpu"] / p["cpu"] for y, p in zip(lms, pss[ev])])
             rows.append({
                 "N": n, "pair_eval": ev,
                 "pair_max_rel_error": chk[ev]["meta"]["pair_max_rel_error"],

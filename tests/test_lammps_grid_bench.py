@@ -1,0 +1,35 @@
+"""bench/lammps_compare.py --grid's measurement (bench/RESULTS.md 38.1), without LAMMPS: the same
+particle-steps at every N within the step bounds, the set-up subtracted as (cost_S - cost_1) /
+(S - 1), the median and spread of the per-repeat ratios, and the refusal of step bounds that
+leave nothing to subtract (before LAMMPS is looked for)."""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
+import common  # noqa: E402
+import lammps_compare as lc  # noqa: E402
+
+
+def test_grid_steps_are_equal_work_within_the_bounds():
+    a = lc.parse_args(["--grid"])
+    assert [lc.grid_steps(n, a) for n in lc.GRID_N] == [10000, 2000, 500, 200]
+    assert lc.grid_steps(100, a) == a.grid_max_steps       # 2e5 clamped to 20 000
+    assert lc.grid_steps(10**6, a) == a.grid_min_steps     # 20 clamped to 200
+
+
+def test_per_step_subtracts_the_one_step_run_and_spread_is_median_min_max():
+    # a run of S steps costs set-up + S x step: the set-up cancels exactly
+    setup, step, s = 0.37, 2.5e-4, 1000
+    assert common.per_step(setup + step, setup + s * step, s) == pytest.approx(step, rel=1e-12)
+    assert common.spread([3.0, 1.0, 2.0, 10.0]) == (2.5, 1.0, 10.0)
+
+
+@pytest.mark.parametrize("args", [["--grid-min-steps", "1"], ["--repeat", "0"],
+                                  ["--grid-min-steps", "500", "--grid-max-steps", "400"]])
+def test_step_bounds_without_a_subtraction_are_refused(args, capsys):
+    assert lc.main(["--grid", *args]) == 2
+    assert "--grid-min-steps" in capsys.readouterr().err
