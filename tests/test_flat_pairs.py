@@ -121,13 +121,15 @@ def test_kept_rows_threads_change_only_round_off(door, make_scene, api):
 # One species (every mu equal): rows_list then takes mu_j as mu_i (the engine's mu_one,
 # bench/RESULTS.md 38.3), two species gather it per pair. Both against all pairs, for rows_list
 # (r_c 5 + skin 1 at density 0.6: 24-48 listed pairs per row) and rows_kept (r_c 3 + skin 1 at
-# density 0.42: 8-24, one code path for both)
+# density 0.42: 8-24, one code path for both), with the sharp (frozen; tail_switch -1: 0) and
+# the smooth (linear: 1 D1, the split, rows_kept's factor without k mu_i) hand-over
+@pytest.mark.parametrize("tail", ["frozen", "linear"])
 @pytest.mark.parametrize("two", [False, True], ids=["one_species", "two_species"])
 @pytest.mark.parametrize("r_cut, density, lo, hi", [(3.0, KEPT_DENSITY, 8, 24),
                                                     (5.0, 0.6, 24, 48)],
                          ids=["rows_kept", "rows_list"])
 def test_row_kernels_with_one_and_two_species_equal_all_pairs(door, make_scene, api, two, r_cut,
-                                                              density, lo, hi):
+                                                              density, lo, hi, tail):
     n = 900
     side = math.sqrt(n / density)
     over = dict(FLAT, **(TWO_SPECIES if two else {}),
@@ -135,8 +137,9 @@ def test_row_kernels_with_one_and_two_species_equal_all_pairs(door, make_scene, 
                    "particles.fill_height": side, "protocol.h_start": side,
                    "integration.r_cut": r_cut})
     ref_x, ref_y = forces(door, make_scene, dict(over, **{"integration.neighbour": "all_pairs"}))
-    fx, fy = forces(door, make_scene, dict(over, **{"integration.tail": "frozen",
-                                                    "integration.tail_every": 1}))
+    fx, fy = forces(door, make_scene, dict(over, **{"integration.tail": tail,
+                                                    "integration.tail_every": 1,
+                                                    "integration.tail_switch": -1.0}))
     assert lo * n <= list_shape(api) < hi * n
     scale = np.max(np.hypot(ref_x, ref_y))
     assert np.max(np.hypot(fx - ref_x, fy - ref_y)) < 1e-12 * scale
