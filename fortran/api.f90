@@ -15,14 +15,14 @@ module api
   use pair_forces, only: dipole_kernel, dipole_eval, lj_chunk, lj_law, lj_law_t, lj_kernel, &
        pair_table_t, split_t
   use pair_eval, only: dipole_eval_build, lj_eval_build
-  use neighbours, only: nlist_due
+  use neighbours, only: nlist_due, nlist_prune_holds
   use integrators, only: estimate_velocity, finish_velocity
   implicit none
   private
   public :: run_scene, resume_run, check_scene, resolve_scene, describe_scene, load_scene, n_particles, get_state, &
        set_state, compute_forces, &
        advance_steps, piston_state, model_groups, energies, kernel, precision_probe, &
-       set_threads, list_audit, protocol_times, set_piston, bench_pairs, write_guard_probe, &
+       set_threads, list_audit, prune_audit, protocol_times, set_piston, bench_pairs, write_guard_probe, &
        pair_eval_probe
 
 contains
@@ -354,6 +354,34 @@ contains
       end do
     end associate
   end subroutine list_audit
+
+  !> Audit of the pruned list (nlist_t) the next force evaluation would use as it is (one
+  !> that no longer holds is taken again first: then nothing can be missed): pairs closer than
+  !> r_c missing from it (must be 0), prunes so far and pairs in it. No pruned list: zeros.
+  subroutine prune_audit(missing, prunes, pairs)
+    integer, intent(out) :: missing, prunes, pairs
+    integer :: i, j, k
+    logical :: found
+    real(dp) :: rc2
+    missing = 0
+    prunes = int(the_sim%nl%prunes)
+    pairs = int(the_sim%nl%ppairs)
+    if (nlist_due(the_sim%nl, the_sim%s%n, the_sim%s%x, the_sim%s%y)) return   ! rebuilt first
+    if (.not. nlist_prune_holds(the_sim%nl, the_sim%s%n, the_sim%s%x, the_sim%s%y)) return
+    rc2 = the_sim%m%r_cut**2
+    associate (s => the_sim%s, nl => the_sim%nl)
+      do i = 1, s%n - 1
+        do j = i + 1, s%n
+          if ((s%x(i) - s%x(j))**2 + (s%y(i) - s%y(j))**2 >= rc2) cycle
+          found = .false.
+          do k = nl%pstart(i), nl%pstart(i + 1) - 1
+            if (nl%pnbr(k) == j) found = .true.
+          end do
+          if (.not. found) missing = missing + 1
+        end do
+      end do
+    end associate
+  end subroutine prune_audit
 
   !> The shared write guards of every kind's outputs, exercised directly:
   !> write `dir/name` fresh with one row at `step` (as_frames = 0: a text

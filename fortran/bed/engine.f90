@@ -14,12 +14,12 @@ module engine
   use initial, only: place_particles
   use start_file, only: start_t
   use pair_forces, only: pair_forces_all, pair_forces_list, pair_forces_far, pair_energy_all, &
-       max_bits
+       max_bits, list_takes_pruned
   use pair_eval, only: dipole_eval_build
   use pair_table, only: eval_code, eval_exact, eval_table
   use scene_input, only: real_str, int_str
   use parallel, only: init_threads, par_min_loop, my_share
-  use neighbours, only: nlist_t, nlist_setup, nlist_refresh, nb_all_pairs, nb_verlet
+  use neighbours, only: nlist_t, nlist_setup, nlist_refresh, nlist_pruned, nb_all_pairs, nb_verlet
   use walls, only: wall_block, wall_energy, wall_chunk
   use friction, only: gravity_force, viscous_friction, dry_friction, friction_at_vn
   use integrators, only: estimate_velocity, finish_velocity, advance
@@ -156,6 +156,7 @@ contains
       sim%nl%with_ranges = .true.     ! and the long rows their ranges (verlet only)
       call nlist_setup(sim%nl, sim%m%neighbour, sim%m%r_cut, sim%m%skin, sim%m%width, &
            sim%m%height, sim%s%n)
+      if (sim%m%neighbour == nb_verlet) sim%nl%prune = sim%m%prune_skin
     end if
     sim%s%step = 0
     call piston_at(sim%p, 0.0_dp, h, phase)
@@ -228,7 +229,7 @@ contains
   subroutine pair_pass(sim, r2min)
     type(sim_t), intent(inout) :: sim
     real(dp), intent(out) :: r2min   !< smallest squared pair distance seen [D1^2]
-    logical :: r3
+    logical :: r3, pruned
     associate (s => sim%s, m => sim%m, nl => sim%nl)
       r3 = m%dry_order > 0
       if (m%neighbour == nb_all_pairs) then
@@ -238,12 +239,20 @@ contains
         nl%evaluated = nl%evaluated + int(s%n, i8)*int(s%n - 1, i8)/2
         return
       end if
-      call nlist_refresh(nl, s)
+      ! the pruned list where the kernel takes it (nlist_t; the same bits as the whole list)
+      pruned = nl%prune > 0 .and. list_takes_pruned(.false., s%n, int(nl%pairs))
+      call nlist_refresh(nl, s, pruned)
+      pruned = pruned .and. nlist_pruned(nl)
       if (m%tail_frozen) then
         if (mod(s%step, int(m%tail_every, i8)) == 0 .or. .not. s%tail_ready) call far_field(sim)
       end if
       call init_forces(sim, m%tail_frozen)
-      if (allocated(nl%rstart) .and. nl%strategy == nb_verlet) then
+      if (pruned) then
+        call pair_forces_list(s%n, s%x, s%y, s%mu, s%wsin, m%k_pair, m%r_cut**2, m%shift4, &
+             nl%check, r3, nl%start, nl%nbr, s%fx, s%fy, s%s3, r2min, own=nl%own, &
+             split=m%split, rstart=nl%rstart, rlo=nl%rlo, rhi=nl%rhi, tab=m%tab, &
+             mu_one=sim%mu_one, pstart=nl%pstart, pnbr=nl%pnbr, pown=nl%pown)
+      else if (allocated(nl%rstart) .and. nl%strategy == nb_verlet) then
         call pair_forces_list(s%n, s%x, s%y, s%mu, s%wsin, m%k_pair, m%r_cut**2, m%shift4, &
              nl%check, r3, nl%start, nl%nbr, s%fx, s%fy, s%s3, r2min, own=nl%own, &
              split=m%split, rstart=nl%rstart, rlo=nl%rlo, rhi=nl%rhi, tab=m%tab, &

@@ -23,8 +23,8 @@ module lj_box
   use schema, only: schema_t, max_steps_all
   use ckpt, only: ckpt_writer_t, ckpt_put, file_crc64
   use state, only: state_t, state_allocate
-  use neighbours, only: nlist_t, nlist_setup, nlist_refresh, nlist_owners, nb_all_pairs, &
-       nb_cells, nb_verlet
+  use neighbours, only: nlist_t, nlist_setup, nlist_refresh, nlist_owners, nlist_pruned, &
+       nb_all_pairs, nb_cells, nb_verlet
   use pair_forces, only: lj_law_t, lj_law, pair_forces_all, pair_forces_list, lj_energy, &
        pair_table_t, max_bits
   use pair_eval, only: lj_eval_build
@@ -87,6 +87,7 @@ module lj_box
     real(dp) :: r_cut = 5                   !< R [a]
     character(len=nm) :: neighbour = 'verlet'
     real(dp) :: skin = 0.6_dp               !< [a]
+    real(dp) :: prune_skin = -1.0_dp        !< pruned list margin over r_cut [a] (< 0: skin/4)
     character(len=nm) :: pair_eval = 'exact'   !< | 'table' | 'single' | 'rsqrt'
     real(dp) :: pair_table_error = 1.0e-6_dp  !< pair_eval /= 'exact': largest relative force error
     ! &physics
@@ -175,6 +176,9 @@ contains
          'all pairs', choices=join(neighbour_names))
     call s%key('skin', self%skin, 'a', 'Verlet list skin (> 0 with neighbour = ''verlet'')', &
          lo=0.0_dp, hi=1.0e3_dp)
+    call s%key('prune_skin', self%prune_skin, 'a', 'verlet: the list pruned to r_cut + '// &
+         'prune_skin, again when a particle moved prune_skin/2 (speed only: the same bits; '// &
+         '< 0: skin/4, 0: off; in [0, skin))', lo=-1.0_dp, hi=1.0e3_dp)
     call s%key('pair_eval', self%pair_eval, '', 'force evaluation: exact (the reference), a '// &
          'table in r^2 between r_m and r_cut (no division) built at load to pair_table_error, '// &
          'or for p = 6 single precision pair arithmetic (double sums) or rsqrt (1/r^2 by '// &
@@ -294,6 +298,9 @@ contains
     else if (trim(self%neighbour) == 'verlet' .and. self%skin <= 0) then
       call fail('steric', 'skin', 'skin = '//real_str(self%skin)//': allowed (0, 1000] [a] '// &
            'with neighbour = ''verlet''')
+    else if (trim(self%neighbour) == 'verlet' .and. self%prune_skin >= self%skin) then
+      call fail('steric', 'prune_skin', 'prune_skin = '//real_str(self%prune_skin)// &
+           ': allowed [0, skin = '//real_str(self%skin)//') [a], or < 0 for skin/4')
     else if (trim(self%contact) == 'surface' .and. self%l <= 2) then
       call fail('box', 'l', 'l = '//real_str(self%l)//': allowed (2, 1e6] [a] with &walls '// &
            'contact = ''surface'' (the centres stay a away from the walls)')
@@ -390,6 +397,8 @@ contains
       call nlist_setup(self%nl, self%strategy, self%r_cut, self%skin, self%l, self%l, &
            int(self%n))
       self%nl%with_owner = .true.
+      if (self%strategy == nb_verlet) &
+           self%nl%prune = merge(0.25_dp*self%skin, self%prune_skin, self%prune_skin < 0)
     end if
   end subroutine build
 
@@ -550,10 +559,18 @@ contains
           call pair_forces_all(s%n, s%x, s%y, s%mu, s%wsin, 1.0_dp, no_r3, s%fx, s%fy, &
                s%s3, self%r2min, law=self%lj, tab=self%ljtab)
         else
-          call nlist_refresh(nl, s)
-          call pair_forces_list(s%n, s%x, s%y, s%mu, s%wsin, 1.0_dp, self%r_cut**2, &
-               0.0_dp, .true., no_r3, nl%start, nl%nbr, s%fx, s%fy, s%s3, self%r2min, &
-               law=self%lj, own=nl%own, tab=self%ljtab)
+          ! the pruned list when there is one (nlist_t; the same bits as the whole list)
+          call nlist_refresh(nl, s, nl%prune > 0)
+          if (nlist_pruned(nl) .and. nl%prune > 0) then
+            call pair_forces_list(s%n, s%x, s%y, s%mu, s%wsin, 1.0_dp, self%r_cut**2, &
+                 0.0_dp, .true., no_r3, nl%start, nl%nbr, s%fx, s%fy, s%s3, self%r2min, &
+                 law=self%lj, own=nl%own, tab=self%ljtab, pstart=nl%pstart, pnbr=nl%pnbr, &
+                 pown=nl%pown)
+          else
+            call pair_forces_list(s%n, s%x, s%y, s%mu, s%wsin, 1.0_dp, self%r_cut**2, &
+                 0.0_dp, .true., no_r3, nl%start, nl%nbr, s%fx, s%fy, s%s3, self%r2min, &
+                 law=self%lj, own=nl%own, tab=self%ljtab)
+          end if
           nl%evaluated = nl%evaluated + nl%pairs
         end if
       end if

@@ -15,6 +15,7 @@ module neighbours
   private
 
   public :: nlist_t, nlist_setup, nlist_due, nlist_bin, nlist_build, nlist_refresh, nlist_owners
+  public :: nlist_pruned, nlist_prune_holds
   public :: nb_all_pairs, nb_cells, nb_verlet, nb_thesis
 
   integer, parameter :: nb_all_pairs = 0, nb_cells = 1, nb_verlet = 2, nb_thesis = 3
@@ -51,6 +52,19 @@ module neighbours
     logical :: with_ranges = .false.
     integer, allocatable :: rstart(:), rlo(:), rhi(:)
     real(dp), allocatable :: xref(:), yref(:)  !< positions at the last build (n)
+    !> The pruned list (GROMACS' dynamic pruning, for a verlet list with check): the listed
+    !> pairs within r_c + prune of the list, in the list's order, taken again from the list
+    !> whenever a particle moved more than prune/2 since (a pair left out was at r >= r_c +
+    !> prune then, so is at r >= r_c until then: a kernel that drops or zeroes pairs beyond r_c
+    !> sums the same terms in the same order as over the whole list). prune = 0: none.
+    real(dp) :: prune = 0
+    logical :: pruned = .false.            !< pstart, pnbr, pown hold the pruned list
+    integer, allocatable :: pstart(:)      !< (n + 1) CSR offsets into pnbr
+    integer, allocatable :: pnbr(:), pown(:)   !< its neighbours j > i, and their rows i
+    real(dp), allocatable :: xpr(:), ypr(:)    !< positions at the last prune (n)
+    real(dp) :: dprune = 0                 !< largest displacement since the build at that prune
+    integer(i8) :: prunes = 0              !< number of prunes
+    integer(i8) :: ppairs = 0              !< pairs in the current pruned list
     logical :: valid = .false.             !< a list exists for the current ordering
     integer(i8) :: builds = 0              !< number of list builds
     integer(i8) :: pairs = 0               !< pairs in the current list
@@ -94,28 +108,68 @@ contains
       return
     end if
     lim2 = (0.5_dp*nl%skin)**2
+    d2max = max_shift2(n, x, y, nl%xref, nl%yref)
+    due = d2max > lim2
+  end function nlist_due
+
+  !> Largest squared displacement max_i |r_i - r_ref,i|^2 [D1^2].
+  function max_shift2(n, x, y, xr, yr) result(d2max)
+    integer, intent(in) :: n
+    real(dp), intent(in) :: x(n), y(n), xr(n), yr(n)
+    real(dp) :: d2max
+    integer :: i
     d2max = 0
     if (n < par_min_loop) then     ! no OpenMP region at all (an inactive one costs ~0.3 us)
       do i = 1, n
-        d2max = max(d2max, (x(i) - nl%xref(i))**2 + (y(i) - nl%yref(i))**2)
+        d2max = max(d2max, (x(i) - xr(i))**2 + (y(i) - yr(i))**2)
       end do
     else
       !$omp parallel do schedule(static) reduction(max: d2max)
       do i = 1, n
-        d2max = max(d2max, (x(i) - nl%xref(i))**2 + (y(i) - nl%yref(i))**2)
+        d2max = max(d2max, (x(i) - xr(i))**2 + (y(i) - yr(i))**2)
       end do
       !$omp end parallel do
     end if
-    due = d2max > lim2
-  end function nlist_due
+  end function max_shift2
 
   !> Before a force pass: rebuild the list when due, re-sorting the particles
   !> by cell first (memory locality; not for 'cells', whose grid is rebuilt every step).
-  subroutine nlist_refresh(nl, s)
+  !> With prune (a pruned list wanted for this pass, nl%prune > 0, verlet with check): the
+  !> pruned list taken again when a particle moved more than nl%prune/2 since the last prune.
+  !> The rebuild rule is the same (a displacement since the build above skin/2): while the
+  !> pruned list holds, only the displacements since the prune are taken, and the list is
+  !> kept when they bound those since the build below skin/2 (|r - r_build| <= |r - r_prune|
+  !> + the largest displacement since the build at the prune); otherwise as without prune.
+  subroutine nlist_refresh(nl, s, prune)
     type(nlist_t), intent(inout) :: nl
     type(state_t), intent(inout) :: s
+    logical, intent(in), optional :: prune
     integer :: k
-    if (.not. nlist_due(nl, s%n, s%x, s%y)) return
+    logical :: want, keep
+    real(dp) :: db2, dp2
+    want = .false.
+    if (present(prune)) want = prune
+    want = want .and. nl%prune > 0 .and. nl%strategy == nb_verlet .and. nl%check
+    keep = .false.   ! the pruned list holds
+    if (want) then
+      keep = nlist_prune_holds(nl, s%n, s%x, s%y, dp2)
+      ! and the list: |r - r_build| <= |r - r_prune| + the largest one at the prune
+      ! (margin: square roots of rounded squares; a near tie goes to the exact test)
+      if (keep .and. sqrt(dp2) + nl%dprune <= 0.5_dp*nl%skin*(1 - 1.0e-12_dp)) return
+    end if
+    if (.not. nl%valid .or. nl%strategy == nb_cells) then
+      db2 = huge(1.0_dp)
+    else
+      db2 = max_shift2(s%n, s%x, s%y, nl%xref, nl%yref)
+    end if
+    if (db2 > (0.5_dp*nl%skin)**2) then
+      call rebuild()
+      db2 = 0
+      keep = .false.
+    end if
+    if (want .and. .not. keep) call nlist_prune(nl, s%n, s%x, s%y, sqrt(db2))
+  contains
+    subroutine rebuild()
     call nlist_bin(nl, s%n, s%x, s%y)
     if (nl%strategy /= nb_cells) then
       call state_permute(s, nl%cell_part)
@@ -123,7 +177,115 @@ contains
       nl%cell_part = [(k, k = 1, s%n)]
     end if
     call nlist_build(nl, s%n, s%x, s%y)
+    end subroutine rebuild
   end subroutine nlist_refresh
+
+  !> Whether the pruned list holds at x, y: every particle within prune/2 (less a margin for
+  !> the rounded squares) of its place at the last prune, and no build since (the list
+  !> itself: nlist_due). dp2: the largest squared displacement since the prune [D1^2].
+  logical function nlist_prune_holds(nl, n, x, y, dp2) result(holds)
+    type(nlist_t), intent(in) :: nl
+    integer, intent(in) :: n
+    real(dp), intent(in) :: x(n), y(n)
+    real(dp), intent(out), optional :: dp2
+    real(dp) :: d2
+    holds = .false.
+    d2 = huge(1.0_dp)
+    if (nl%pruned .and. nl%valid .and. nl%prune > 0) then
+      d2 = max_shift2(n, x, y, nl%xpr, nl%ypr)
+      holds = d2 <= (0.5_dp*nl%prune*(1 - 1.0e-9_dp))**2
+    end if
+    if (present(dp2)) dp2 = d2
+  end function nlist_prune_holds
+
+  !> Whether a force pass may use the pruned list now (see nlist_t).
+  pure logical function nlist_pruned(nl) result(yes)
+    type(nlist_t), intent(in) :: nl
+    yes = nl%pruned .and. nl%valid
+  end function nlist_pruned
+
+  !> The pruned list from the list at positions x, y (see nlist_t); d_build: the largest
+  !> displacement since the build now [D1]. Rows in order, each row's pairs in the list's
+  !> order; no branch on the distance (every pair stored at the next free slot, which
+  !> advances when it is kept). On the threads from par_min_loop particles: blocks of rows
+  !> into their own part of the list's length, then moved together.
+  subroutine nlist_prune(nl, n, x, y, d_build)
+    !$ use omp_lib, only: omp_get_max_threads, omp_get_thread_num
+    type(nlist_t), intent(inout) :: nl
+    integer, intent(in) :: n
+    real(dp), intent(in) :: x(n), y(n), d_build
+    integer :: nt, t, lo, hi, kept(0:64), at(0:64), i, k, total
+    integer, allocatable :: tmp(:), tmpo(:)
+    if (allocated(nl%pstart)) then
+      if (size(nl%pstart) /= n + 1) deallocate(nl%pstart, nl%xpr, nl%ypr)
+    end if
+    if (.not. allocated(nl%pstart)) allocate(nl%pstart(n + 1), nl%xpr(n), nl%ypr(n))
+    total = nl%start(n + 1) - 1
+    if (allocated(nl%pnbr)) then
+      if (size(nl%pnbr) < total + 1) deallocate(nl%pnbr, nl%pown)
+    end if
+    if (.not. allocated(nl%pnbr)) allocate(nl%pnbr(size(nl%nbr) + 1), nl%pown(size(nl%nbr) + 1))
+    nt = 1
+    !$ if (n >= par_min_loop) nt = min(64, omp_get_max_threads())
+    if (nt == 1) then
+      call prune_rows(1, n, 1, nl%pnbr, nl%pown, kept(1))
+    else
+      allocate(tmp(total + 1), tmpo(total + 1))
+      !$omp parallel num_threads(nt) default(shared) private(t, lo, hi, i, k)
+      t = 1
+      !$ t = omp_get_thread_num() + 1
+      lo = int(int(n, i8)*(t - 1)/nt) + 1
+      hi = int(int(n, i8)*t/nt)
+      call prune_rows(lo, hi, nl%start(lo), tmp, tmpo, kept(t))
+      !$omp barrier
+      !$omp single
+      at(0) = 0
+      do k = 1, nt
+        at(k) = at(k - 1) + kept(k)
+      end do
+      !$omp end single
+      ! block t's rows: its pstart(lo:hi) counted from start(lo); moved to follow block t - 1
+      do i = lo, hi
+        nl%pstart(i) = nl%pstart(i) - nl%start(lo) + at(t - 1) + 1
+      end do
+      do k = 1, kept(t)
+        nl%pnbr(at(t - 1) + k) = tmp(nl%start(lo) + k - 1)
+        nl%pown(at(t - 1) + k) = tmpo(nl%start(lo) + k - 1)
+      end do
+      !$omp end parallel
+    end if
+    nl%pstart(n + 1) = sum(kept(1:nt)) + 1
+    nl%ppairs = nl%pstart(n + 1) - 1
+    nl%xpr = x
+    nl%ypr = y
+    nl%dprune = d_build
+    nl%pruned = .true.
+    nl%prunes = nl%prunes + 1
+  contains
+    !> Rows lo..hi into out, from position first on: pstart(i), kept the pairs written.
+    subroutine prune_rows(lo, hi, first, out, outo, kept)
+      integer, intent(in) :: lo, hi, first
+      integer, intent(inout) :: out(:), outo(:)
+      integer, intent(out) :: kept
+      integer :: i, k, j, slot
+      real(dp) :: rp2, xi, yi, dx, dy
+      rp2 = (nl%rc + nl%prune)**2
+      slot = first
+      do i = lo, hi
+        nl%pstart(i) = slot
+        xi = x(i); yi = y(i)
+        do k = nl%start(i), nl%start(i + 1) - 1
+          j = nl%nbr(k)
+          dx = xi - x(j)
+          dy = yi - y(j)
+          out(slot) = j
+          outo(slot) = i
+          slot = slot + merge(1, 0, dx*dx + dy*dy < rp2)
+        end do
+      end do
+      kept = slot - first
+    end subroutine prune_rows
+  end subroutine nlist_prune
 
   !> own(k) = the row i of listed pair k (with_owner lists only), and the ranges (with_ranges,
   !> verlet only): both follow from start and nbr, also after a restore.
@@ -131,6 +293,7 @@ contains
     type(nlist_t), intent(inout) :: nl
     integer, intent(in) :: n
     integer :: i
+    nl%pruned = .false.   ! (a new list, or one restored: pruned again before its next use)
     if (nl%with_ranges .and. nl%strategy == nb_verlet) call nlist_ranges(nl, n)
     if (.not. nl%with_owner) return
     if (allocated(nl%own)) then

@@ -34,6 +34,7 @@ module pair_forces
   private
 
   public :: dipole_kernel, pair_forces_all, pair_forces_list, pair_forces_far, pair_energy_all
+  public :: list_takes_pruned
   public :: lj_law_t, lj_law, lj_kernel, lj_energy
   public :: split_t, split_of
   public :: pair_table_t, max_bits
@@ -420,7 +421,8 @@ contains
   !> are skipped when check is set (the thesis variant r_c = r_v uses every listed pair);
   !> with a split (dipole), pairs are weighted by its near side S(r).
   subroutine pair_forces_list(n, x, y, mu, wsin, k_pair, rc2, shift4, check, with_r3, &
-       start, nbr, fx, fy, s3, r2min, law, own, split, rstart, rlo, rhi, tab, mu_one)
+       start, nbr, fx, fy, s3, r2min, law, own, split, rstart, rlo, rhi, tab, mu_one, pstart, &
+       pnbr, pown)
     integer, intent(in) :: n
     real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair
     real(dp), intent(in) :: rc2       !< squared cut-off [D1^2]
@@ -443,21 +445,46 @@ contains
     !> ~1.07x at r_c 7, 0.97-1.08x at r_c 3-4; in rows_pairs' sums it measured slower:
     !> bench/RESULTS.md 38.3, 38.7)
     logical, intent(in), optional :: mu_one
+    !> the list pruned to r_c + prune (nlist_t; with check): taken instead of start, nbr, own
+    !> where list_takes_pruned says so (the same terms in the same order: the same bits);
+    !> the kernel choice and the threads' blocks still follow start
+    integer, intent(in), optional, contiguous :: pstart(:), pnbr(:), pown(:)
     type(split_t) :: sp
     logical :: one
+    integer :: i, k, j
     one = .false.
     if (present(mu_one)) one = mu_one
     if (present(split)) sp = split
     if (present(rstart) .and. check .and. .not. present(law)) then
       call threaded_pass(mode_list, kernel_dipole, lj_law_t(), sp, n, x, y, mu, wsin, k_pair, &
            0.0_dp, rc2, shift4, check, with_r3, start, nbr, fx, fy, s3, r2min, own, rstart, rlo, &
-           rhi, tab=tab, mu_one=one)
+           rhi, tab=tab, mu_one=one, pstart=pstart, pnbr=pnbr, pown=pown)
     else
       call threaded_pass(mode_list, kernel_of(law), law_of(law), sp, n, x, y, mu, wsin, k_pair, &
            0.0_dp, rc2, shift4, check, with_r3, start, nbr, fx, fy, s3, r2min, own, tab=tab, &
-           mu_one=one)
+           mu_one=one, pstart=pstart, pnbr=pnbr, pown=pown)
+    end if
+    ! r2min over the pruned list is the list's when below r_c^2 (every pair left out is
+    ! beyond r_c); otherwise the list's own, taken here (rare: no pair within r_c)
+    if (present(pstart) .and. r2min >= rc2 .and. &
+        list_takes_pruned(present(law), n, start(n + 1) - 1)) then
+      do i = 1, n
+        do k = start(i), start(i + 1) - 1
+          j = nbr(k)
+          r2min = min(r2min, (x(i) - x(j))**2 + (y(i) - y(j))**2)
+        end do
+      end do
     end if
   end subroutine pair_forces_list
+
+  !> Whether pair_forces_list's kernel for a list of npairs over n rows takes a pruned list
+  !> (rows_pairs, rows_kept: pairs beyond r_c dropped or zeroed one by one, the sums in the
+  !> list's order; not rows_list, rows_ranges, whose sums go by lanes of the rows' positions).
+  pure logical function list_takes_pruned(lj, n, npairs) result(yes)
+    logical, intent(in) :: lj   !< the Lennard-Jones law (else the dipole law)
+    integer, intent(in) :: n, npairs
+    yes = lj .or. real(npairs, dp) < kept_row_pairs*real(max(1, n), dp)
+  end function list_takes_pruned
 
   pure integer function kernel_of(law) result(k)
     type(lj_law_t), intent(in), optional :: law
@@ -962,8 +989,8 @@ contains
     real(dp), intent(inout) :: fx(n), fy(n), s3(n), sx(*), sy(*), ss(*)
     real(dp), intent(inout) :: r2low
     integer, parameter :: chunk = pair_chunk
-    integer :: i, j, m, k, k0, nk, k_hi, code
-    real(dp) :: low, rk2, keep3, e5, e3, keep
+    integer :: i, j, m, k, k0, nk, k_hi, code, ic
+    real(dp) :: low, rk2, keep3, e5, e3, keep, ax, ay, a3
     real(dp) :: r2s(chunk), pw(chunk, 4)   ! per pair: x_i - x_j, y_i - y_j, force factor, r^-3
     type(pair_table_t), intent(in), optional :: tab   !< the law's evaluation
     integer(i8) :: ks(pair_chunk), tn
@@ -975,6 +1002,8 @@ contains
     rk2 = huge(1.0_dp)
     if (check) rk2 = rc2
     k_hi = start(i_hi + 1) - 1
+    ax = 0; ay = 0; a3 = 0
+    if (k_hi >= start(i_lo)) ic = own(start(i_lo))   ! the first open row
     do k0 = start(i_lo), k_hi, chunk
       nk = min(chunk, k_hi - k0 + 1)
       ! scalar loads, not vector gathers: with AVX-512 GCC 12 gathers 8 doubles per
@@ -1006,26 +1035,34 @@ contains
       end if
       call chunk_sums(nk, own(k0:k0 + nk - 1), nbr(k0:k0 + nk - 1), hi_direct, &
            kernel == kernel_dipole, pw, fx, fy, s3, sx, sy, ss, mu, wsin, k_pair, hi_direct >= n, &
-           start(own(k0) + 1:), k0)
+           start, k0, ic, ax, ay, a3)
     end do
+    if (k_hi >= start(i_lo)) then   ! the last open row
+      fx(ic) = fx(ic) + ax
+      fy(ic) = fy(ic) + ay
+      if (kernel == kernel_dipole) s3(ic) = s3(ic) + a3
+    end if
     r2low = low
   end subroutine rows_pairs
 
   !> The sums of one chunk of pairs (i = own(m), j = nbr(m)) with force factors cs and
-  !> separations dxs, dys: the action on i summed in registers while its row lasts (pairs
-  !> come in row order: no store-to-load chain through fx(i) from one pair to the next), the
-  !> reaction on j directly (j <= hi_direct) or to the spill arrays. Dipole (scaled): the force
-  !> factor is k mu_i mu_j cs, and s3(i) += wsin_j r3s, s3(j) += wsin_i r3s (mu_i and wsin_i
-  !> loaded once per row; r3s = 0 without the friction sums). Otherwise (Lennard-Jones) columns
-  !> 1, 2 hold the pair's force itself (rows_pairs multiplies them out, vectorised: here a
-  !> product inside the sums would be contracted into two fused multiply-adds, other bits), and
-  !> serially (all_direct) the reactions go without the test on hi_direct.
+  !> separations dxs, dys: the action on the open row ic summed in registers while its row
+  !> lasts (pairs come in row order: no store-to-load chain through fx(i) from one pair to the
+  !> next), also across chunks (ic, ax, ay, a3 carried: the sums do not depend on where the
+  !> chunks end, so a list with pairs left out beyond r_c sums the same terms the same way;
+  !> the caller adds the last open row), the reaction on j directly (j <= hi_direct) or to the
+  !> spill arrays. Dipole (scaled): the force factor is k mu_i mu_j cs, and s3(i) += wsin_j r3s,
+  !> s3(j) += wsin_i r3s (mu_i and wsin_i loaded once per row; r3s = 0 without the friction
+  !> sums). Otherwise (Lennard-Jones) columns 1, 2 hold the pair's force itself (rows_pairs
+  !> multiplies them out, vectorised: here a product inside the sums would be contracted into
+  !> two fused multiply-adds, other bits), and serially (all_direct) the reactions go without
+  !> the test on hi_direct.
   subroutine chunk_sums(nk, own, nbr, hi_direct, scaled, pw, fx, fy, s3, sx, sy, ss, mu, &
-       wsin, k_pair, all_direct, next_start, k0)
+       wsin, k_pair, all_direct, start, k0, ic, ax, ay, a3)
     integer, intent(in) :: nk, own(nk), nbr(nk), hi_direct
-    !> the list's start(i + 1), i = own(1), own(1) + 1, ..., and the chunk's first pair k0:
-    !> with all_direct, the row ends from these (no load of own per pair)
-    integer, intent(in) :: next_start(*), k0
+    !> the list's offsets and the chunk's first pair k0: with all_direct, the row ends from
+    !> these (no load of own per pair)
+    integer, intent(in) :: start(*), k0
     logical, intent(in) :: scaled
     logical, intent(in) :: all_direct   !< hi_direct >= n: every reaction direct
     !> per pair m: separations dx, dy (columns 1, 2), force factor cs (3), r^-3 r3s (4); one
@@ -1033,10 +1070,10 @@ contains
     real(dp), intent(in) :: pw(pair_chunk, 4)
     real(dp), intent(in) :: mu(*), wsin(*), k_pair
     real(dp), intent(inout) :: fx(*), fy(*), s3(*), sx(*), sy(*), ss(*)
-    integer :: m, i, j, ic, m_end
-    real(dp) :: gx, gy, ax, ay, a3, c, ci, wi
-    ic = own(1)
-    ax = 0; ay = 0; a3 = 0
+    integer, intent(inout) :: ic             !< the open row
+    real(dp), intent(inout) :: ax, ay, a3    !< its sums so far
+    integer :: m, i, j, m_end
+    real(dp) :: gx, gy, c, ci, wi
     if (scaled) then
       ci = k_pair*mu(ic)
       wi = wsin(ic)
@@ -1068,16 +1105,15 @@ contains
           ss(j) = ss(j) + wi*pw(m, 4)
         end if
       end do
-      s3(ic) = s3(ic) + a3
     else if (all_direct) then   ! (serial: no spill, no test per pair)
-      m_end = next_start(1) - k0      ! the last pair of row ic in the chunk (or beyond it)
+      m_end = start(ic + 1) - k0      ! the last pair of row ic in the chunk (or beyond it)
       do m = 1, nk
         j = nbr(m)
         if (m > m_end) then
           fx(ic) = fx(ic) + ax
           fy(ic) = fy(ic) + ay
           ic = own(m)
-          m_end = next_start(ic - own(1) + 1) - k0
+          m_end = start(ic + 1) - k0
           ax = 0; ay = 0
         end if
         gx = pw(m, 1)
@@ -1110,8 +1146,6 @@ contains
         end if
       end do
     end if
-    fx(ic) = fx(ic) + ax
-    fy(ic) = fy(ic) + ay
   end subroutine chunk_sums
 
   !> The buffers of the contiguous dipole passes for n particles (allocated when n changes).
@@ -1137,7 +1171,8 @@ contains
   !> spills are added in thread order and reset to zero. The result does not
   !> depend on scheduling, and on the thread count only through round-off.
   subroutine threaded_pass(mode, kernel, l, sp, n, x, y, mu, wsin, k_pair, r2_min, rc2, &
-       shift4, check, with_r3, start, nbr, fx, fy, s3, r2low, own, rstart, rlo, rhi, tab, mu_one)
+       shift4, check, with_r3, start, nbr, fx, fy, s3, r2low, own, rstart, rlo, rhi, tab, mu_one, &
+       pstart, pnbr, pown)
     !$ use omp_lib, only: omp_get_max_threads, omp_get_thread_num
     integer, intent(in) :: mode, kernel, n
     type(lj_law_t), intent(in) :: l
@@ -1151,7 +1186,10 @@ contains
     integer, intent(in), optional, contiguous :: rstart(:), rlo(:), rhi(:)   !< the list's ranges
     type(pair_table_t), intent(in), optional :: tab   !< the law's table (used when on)
     logical, intent(in), optional :: mu_one   !< every mu(i) equals mu(1) (pair_forces_list)
+    !> the pruned list for rows_kept and rows_pairs (pair_forces_list)
+    integer, intent(in), optional, contiguous :: pstart(:), pnbr(:), pown(:)
     real(dp) :: low(64)
+    logical :: use_p
     logical :: one
     integer :: nt, t, lo, hi, i, u
     integer :: bound(0:64)
@@ -1173,6 +1211,8 @@ contains
     kept_rows = work < kept_row_pairs*real(max(1, n), dp)
     long_rows = work >= long_row_pairs*real(max(1, n), dp) .and. present(rstart)
     if (present(tab)) long_rows = long_rows .and. tab%eval /= eval_single
+    use_p = present(pstart) .and. present(pnbr) .and. present(pown)
+    if (use_p) use_p = list_takes_pruned(kernel /= kernel_dipole, n, start(n + 1) - 1)
     !$ if (work >= 5.0e4_dp) nt = min(omp_get_max_threads(), 64)
     r2low = huge(1.0_dp)
     if (kernel == kernel_dipole .and. (mode == mode_all .or. long_rows)) call range_buffers(n)
@@ -1227,12 +1267,18 @@ contains
       else if (kernel == kernel_dipole .and. long_rows) then
         call rows_ranges(sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, shift4, &
              with_r3, rstart, rlo, rhi, ax, ay, a3, bx, by, b3, lw, tab)
+      else if (kernel == kernel_dipole .and. mid_rows .and. kept_rows .and. use_p) then
+        call rows_kept(sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, &
+             shift4, check, with_r3, one, pstart, pnbr, ax, ay, a3, bx, by, b3, lw, tab)
       else if (kernel == kernel_dipole .and. mid_rows .and. kept_rows) then
         call rows_kept(sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, &
              shift4, check, with_r3, one, start, nbr, ax, ay, a3, bx, by, b3, lw, tab)
       else if (kernel == kernel_dipole .and. mid_rows) then
         call rows_list(sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, &
              shift4, check, with_r3, one, start, nbr, ax, ay, a3, bx, by, b3, lw, tab)
+      else if (use_p) then
+        call rows_pairs(kernel, l, sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, &
+             shift4, check, with_r3, pstart, pnbr, pown, ax, ay, a3, bx, by, b3, lw, tab)
       else
         call rows_pairs(kernel, l, sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, &
              shift4, check, with_r3, start, nbr, own, ax, ay, a3, bx, by, b3, lw, tab)
