@@ -65,12 +65,17 @@ DENSE = {"particles.n": 1500, "cell.width": 64.0, "cell.height": 64.0, "protocol
 
 CASES = {
     # rows_kept (8-24 listed pairs per row): the grid's system at r_c 4
-    "bed_kept": ("demo", DENSE, "integration"),
+    "bed_kept": ("demo", DENSE, "integration", 1),
+    # the same on two threads, large enough for the threaded pass and the threaded prune
+    # (a row's reactions near a block's end go by one branch whichever pairs it keeps)
+    "bed_kept_threads": ("demo", dict(DENSE, **{"particles.n": 5000, "cell.width": 116.0,
+                                                "cell.height": 116.0, "protocol.h_start": 116.0,
+                                                "protocol.t_end": 0.2}), "integration", 2),
     # rows_pairs with the split far field, the friction sums, the piston: the standard cycle
     "standard": ("standard", {"protocol.piston": "fixed", "protocol.t_end": 4.0,
-                              "output.frame_every": 200}, "integration"),
+                              "output.frame_every": 200}, "integration", 1),
     # rows_pairs' Lennard-Jones sums
-    "lj": ("lj_demo", {"output.frame_every": 50}, "steric"),
+    "lj": ("lj_demo", {"output.frame_every": 50}, "steric", 1),
 }
 
 
@@ -78,7 +83,7 @@ CASES = {
 def test_pruning_gives_the_same_bytes(make_scene, tmp_path, case):
     """prune_skin 0 (the whole list), automatic (skin/4) and half the skin: the same bytes in
     every output (frames, energies, piston, distances)."""
-    base, ov, group = CASES[case]
+    base, ov, group, threads = CASES[case]
     outs = {}
     for label, value in (("off", 0.0), ("auto", -1.0), ("half", None)):
         o = dict(ov)
@@ -87,7 +92,7 @@ def test_pruning_gives_the_same_bytes(make_scene, tmp_path, case):
         else:
             skin = Scene.read(make_scene(base, ov)).groups[group]["skin"]
             o[f"{group}.prune_skin"] = 0.5 * float(skin)
-        r = run(make_scene(base, o), tmp_path / f"{case}_{label}", progress=False, threads=1)
+        r = run(make_scene(base, o), tmp_path / f"{case}_{label}", progress=False, threads=threads)
         outs[label] = _bytes(r.dir)
     assert outs["off"], "no output files to compare"
     assert outs["auto"] == outs["off"]

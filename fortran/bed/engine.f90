@@ -251,12 +251,13 @@ contains
         call pair_forces_list(s%n, s%x, s%y, s%mu, s%wsin, m%k_pair, m%r_cut**2, m%shift4, &
              nl%check, r3, nl%start, nl%nbr, s%fx, s%fy, s%s3, r2min, own=nl%own, &
              split=m%split, rstart=nl%rstart, rlo=nl%rlo, rhi=nl%rhi, tab=m%tab, &
-             mu_one=sim%mu_one, pstart=nl%pstart, pnbr=nl%pnbr, pown=nl%pown)
+             mu_one=sim%mu_one, pstart=nl%pstart, pnbr=nl%pnbr, pown=nl%pown, &
+             rowmax=nl%rowmax)
       else if (allocated(nl%rstart) .and. nl%strategy == nb_verlet) then
         call pair_forces_list(s%n, s%x, s%y, s%mu, s%wsin, m%k_pair, m%r_cut**2, m%shift4, &
              nl%check, r3, nl%start, nl%nbr, s%fx, s%fy, s%s3, r2min, own=nl%own, &
              split=m%split, rstart=nl%rstart, rlo=nl%rlo, rhi=nl%rhi, tab=m%tab, &
-             mu_one=sim%mu_one)
+             mu_one=sim%mu_one, rowmax=nl%rowmax)
       else
         call pair_forces_list(s%n, s%x, s%y, s%mu, s%wsin, m%k_pair, m%r_cut**2, m%shift4, &
              nl%check, r3, nl%start, nl%nbr, s%fx, s%fy, s%s3, r2min, own=nl%own, split=m%split, &

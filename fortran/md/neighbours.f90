@@ -44,6 +44,9 @@ module neighbours
     integer, allocatable :: nbr(:)         !< neighbours j > i of each i
     logical :: with_owner = .false.        !< also fill own (flat pair loops)
     integer, allocatable :: own(:)         !< i of each listed pair (with_owner only)
+    !> the largest listed j of each row i (i when empty; with_owner only): whether a row's
+    !> reactions are all below a thread block's end, the same for the list and its pruned one
+    integer, allocatable :: rowmax(:)
     !> also fill the ranges (verlet only): the listed j of row i, cut where two consecutive
     !> ones are more than range_gap apart, as contiguous ranges rlo(r)..rhi(r),
     !> r = rstart(i)..rstart(i+1)-1 (rows_ranges). A range also holds unlisted j; for the
@@ -300,8 +303,14 @@ contains
       if (size(nl%own) /= size(nl%nbr)) deallocate(nl%own)
     end if
     if (.not. allocated(nl%own)) allocate(nl%own(size(nl%nbr)))
+    if (allocated(nl%rowmax)) then
+      if (size(nl%rowmax) /= n) deallocate(nl%rowmax)
+    end if
+    if (.not. allocated(nl%rowmax)) allocate(nl%rowmax(n))
     do i = 1, n
       nl%own(nl%start(i):nl%start(i + 1) - 1) = i
+      nl%rowmax(i) = max(i, maxval(nl%nbr(nl%start(i):nl%start(i + 1) - 1), &
+           mask=nl%start(i) < nl%start(i + 1)))
     end do
   end subroutine nlist_owners
 

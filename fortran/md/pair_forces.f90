@@ -422,7 +422,7 @@ contains
   !> with a split (dipole), pairs are weighted by its near side S(r).
   subroutine pair_forces_list(n, x, y, mu, wsin, k_pair, rc2, shift4, check, with_r3, &
        start, nbr, fx, fy, s3, r2min, law, own, split, rstart, rlo, rhi, tab, mu_one, pstart, &
-       pnbr, pown)
+       pnbr, pown, rowmax)
     integer, intent(in) :: n
     real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair
     real(dp), intent(in) :: rc2       !< squared cut-off [D1^2]
@@ -449,6 +449,9 @@ contains
     !> where list_takes_pruned says so (the same terms in the same order: the same bits);
     !> the kernel choice and the threads' blocks still follow start
     integer, intent(in), optional, contiguous :: pstart(:), pnbr(:), pown(:)
+    !> the largest j of each row (nlist_t rowmax): rows_kept's reactions then go by one branch
+    !> per row (needed for the pruned list's bits on threads)
+    integer, intent(in), optional, contiguous :: rowmax(:)
     type(split_t) :: sp
     logical :: one
     integer :: i, k, j
@@ -458,11 +461,11 @@ contains
     if (present(rstart) .and. check .and. .not. present(law)) then
       call threaded_pass(mode_list, kernel_dipole, lj_law_t(), sp, n, x, y, mu, wsin, k_pair, &
            0.0_dp, rc2, shift4, check, with_r3, start, nbr, fx, fy, s3, r2min, own, rstart, rlo, &
-           rhi, tab=tab, mu_one=one, pstart=pstart, pnbr=pnbr, pown=pown)
+           rhi, tab=tab, mu_one=one, pstart=pstart, pnbr=pnbr, pown=pown, rowmax=rowmax)
     else
       call threaded_pass(mode_list, kernel_of(law), law_of(law), sp, n, x, y, mu, wsin, k_pair, &
            0.0_dp, rc2, shift4, check, with_r3, start, nbr, fx, fy, s3, r2min, own, tab=tab, &
-           mu_one=one, pstart=pstart, pnbr=pnbr, pown=pown)
+           mu_one=one, pstart=pstart, pnbr=pnbr, pown=pown, rowmax=rowmax)
     end if
     ! r2min over the pruned list is the list's when below r_c^2 (every pair left out is
     ! beyond r_c); otherwise the list's own, taken here (rare: no pair within r_c)
@@ -609,7 +612,7 @@ contains
   !> arrays, as in rows_all). The same operations on every acting pair, in the same order, as
   !> one row at a time over every listed pair.
   subroutine rows_kept(sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, shift4, &
-       check, with_r3, mu_one, start, nbr, fx, fy, s3, sx, sy, ss, r2low, tab)
+       check, with_r3, mu_one, start, nbr, fx, fy, s3, sx, sy, ss, r2low, tab, rowmax)
     type(split_t), intent(in) :: sp
     integer, intent(in) :: i_lo, i_hi, hi_direct, n
     real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair, rc2, shift4
@@ -620,10 +623,14 @@ contains
     real(dp), intent(inout) :: sx(*), sy(*), ss(*)
     real(dp), intent(inout) :: r2low   !< running minimum of r^2
     type(pair_table_t), intent(in), optional :: tab   !< the dipole law's evaluation
+    !> the largest j of each row of the whole list (nlist_t): a row's reactions go by one
+    !> branch whichever pairs of it a chunk holds (the branches' products may round
+    !> differently), so the pruned list sums as the whole one; absent: by the chunk's j
+    integer, intent(in), optional :: rowmax(n)
     integer, parameter :: chunk = pair_chunk
     integer :: i, j, m, k, k0, k_hi, nk, nc, ns, s, r_open, row_of(chunk), seg_lo(chunk + 1)
     integer :: js(chunk)
-    logical :: direct
+    logical :: direct, all_direct, by_row
     real(dp) :: xi, yi, ci0, c_row, wi, fxi, fyi, s3i, low, rk2, rk_keep, e5, e3, keep, dx, dy, r2
     real(dp) :: cs(chunk), r3s(chunk), r2s(chunk), ds(chunk), cis(chunk)
     integer(i8) :: ks(chunk), tn
@@ -687,14 +694,17 @@ contains
       associate (c => cs, r3 => r3s, ci => cis, w3 => 1.0_dp, nk => nc)
         include 'dipole_eval.inc'
       end associate
-      direct = hi_direct >= n
-      if (.not. direct) direct = maxval(nbr(k0:k0 + nk - 1)) <= hi_direct
+      all_direct = hi_direct >= n
+      by_row = present(rowmax) .and. .not. all_direct
+      direct = all_direct
+      if (.not. (direct .or. by_row)) direct = maxval(nbr(k0:k0 + nk - 1)) <= hi_direct
       do s = 1, ns
         if (row_of(s) /= r_open) then   ! the open row ended: its sums, then the empty rows'
           call close_rows(r_open, row_of(s) - 1, with_r3, fxi, fyi, s3i, fx, fy, s3)
           r_open = row_of(s)
           wi = wsin(r_open)
         end if
+        if (by_row) direct = rowmax(r_open) <= hi_direct
         xi = x(r_open); yi = y(r_open)
         if (direct) then   ! the usual case: every j is ours
           do m = seg_lo(s), seg_lo(s + 1) - 1
@@ -1172,7 +1182,7 @@ contains
   !> depend on scheduling, and on the thread count only through round-off.
   subroutine threaded_pass(mode, kernel, l, sp, n, x, y, mu, wsin, k_pair, r2_min, rc2, &
        shift4, check, with_r3, start, nbr, fx, fy, s3, r2low, own, rstart, rlo, rhi, tab, mu_one, &
-       pstart, pnbr, pown)
+       pstart, pnbr, pown, rowmax)
     !$ use omp_lib, only: omp_get_max_threads, omp_get_thread_num
     integer, intent(in) :: mode, kernel, n
     type(lj_law_t), intent(in) :: l
@@ -1188,6 +1198,7 @@ contains
     logical, intent(in), optional :: mu_one   !< every mu(i) equals mu(1) (pair_forces_list)
     !> the pruned list for rows_kept and rows_pairs (pair_forces_list)
     integer, intent(in), optional, contiguous :: pstart(:), pnbr(:), pown(:)
+    integer, intent(in), optional, contiguous :: rowmax(:)   !< (pair_forces_list)
     real(dp) :: low(64)
     logical :: use_p
     logical :: one
@@ -1269,10 +1280,11 @@ contains
              with_r3, rstart, rlo, rhi, ax, ay, a3, bx, by, b3, lw, tab)
       else if (kernel == kernel_dipole .and. mid_rows .and. kept_rows .and. use_p) then
         call rows_kept(sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, &
-             shift4, check, with_r3, one, pstart, pnbr, ax, ay, a3, bx, by, b3, lw, tab)
+             shift4, check, with_r3, one, pstart, pnbr, ax, ay, a3, bx, by, b3, lw, tab, &
+             rowmax)
       else if (kernel == kernel_dipole .and. mid_rows .and. kept_rows) then
         call rows_kept(sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, &
-             shift4, check, with_r3, one, start, nbr, ax, ay, a3, bx, by, b3, lw, tab)
+             shift4, check, with_r3, one, start, nbr, ax, ay, a3, bx, by, b3, lw, tab, rowmax)
       else if (kernel == kernel_dipole .and. mid_rows) then
         call rows_list(sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, &
              shift4, check, with_r3, one, start, nbr, ax, ay, a3, bx, by, b3, lw, tab)
