@@ -33,3 +33,27 @@ def test_per_step_subtracts_the_one_step_run_and_spread_is_median_min_max():
 def test_step_bounds_without_a_subtraction_are_refused(args, capsys):
     assert lc.main(["--grid", *args]) == 2
     assert "--grid-min-steps" in capsys.readouterr().err
+
+
+def test_ab_engines_drops_keys_an_older_engine_does_not_know(tmp_path):
+    """ab_engines --drop-keys: the scenes both engines run lose the named keys (defaults
+    apply) and keep every other; a key absent from the scene is no error."""
+    import f90nml
+
+    import ab_engines
+
+    src = tmp_path / "s.nml"
+    src.write_text("&integration\n  skin = 1.0\n  prune_skin = -1.0\n/\n&output\n  frame_every = 5\n/\n")
+    assert ab_engines.without_keys(src, []) == src
+    out = ab_engines.without_keys(src, ["integration.prune_skin", "steric.prune_skin"])
+    nml = f90nml.read(str(out))
+    assert "prune_skin" not in nml["integration"]
+    assert nml["integration"]["skin"] == 1.0 and nml["output"]["frame_every"] == 5
+
+
+def test_prune_sweep_refuses_a_sweep_without_its_reference(capsys):
+    import prune_sweep
+
+    assert prune_sweep.main(["--margins", "0.25", "0.5"]) == 2
+    assert prune_sweep.main(["--margins", "0", "1.0"]) == 2
+    assert "--margins" in capsys.readouterr().err
