@@ -474,7 +474,7 @@ contains
   !> (dense packing within r_cut + skin), start-grid work arrays.
   real(dp) function memory_estimate(sc) result(bytes)
     type(scene_t), intent(in) :: sc
-    real(dp) :: per, rv, dmin
+    real(dp) :: per, rv, dmin, pb
     ! state arrays, placement work arrays, frame writer, cell bins and checkpoint copies:
     ! measured 208 B per particle (max RSS 203 MB at n = 1e6, cells, r_cut 1.5), 240 B kept
     per = 240
@@ -482,8 +482,14 @@ contains
       rv = sc%r_cut
       if (trim(sc%neighbour) /= 'cells') rv = rv + sc%skin
       dmin = minval(sc%species_diameter(1:max(1, min(sc%n_species, max_species))))
-      ! half the neighbours within r_v at hexagonal packing of the smallest species, 4 B each
-      per = per + 4.0_dp*0.5_dp*pi_*rv**2*(2.0_dp/sqrt(3.0_dp))/dmin**2 + 2*8 + 2*4
+      ! half the neighbours within r_v at hexagonal packing of the smallest species: 8 B each
+      ! (nbr, own), per particle xref, yref, start, cell_part, rowmax; the pruned list (only
+      ! below 24 listed pairs per particle, its arrays with a quarter's room): 16 B a pair
+      ! (pnbr, pown and the threaded prune's copies) and xpr, ypr, pstart
+      pb = 0.5_dp*pi_*rv**2*(2.0_dp/sqrt(3.0_dp))/dmin**2
+      per = per + 8*pb + 2*8 + 3*4
+      if (trim(sc%neighbour) == 'verlet' .and. sc%prune_skin /= 0) &
+           per = per + 16*min(pb, 30.0_dp) + 2*8 + 4
     end if
     bytes = real(sc%n, dp)*per + 16.0_dp*2.0_dp**20
   end function memory_estimate

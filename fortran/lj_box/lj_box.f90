@@ -286,6 +286,7 @@ contains
     type(schema_t), intent(in) :: s
     character(len=*), intent(in) :: path
     type(status_t), intent(inout) :: st
+    real(dp) :: mem, pairs   ! the memory estimate [B a particle], listed pairs a particle
     if (self%type_id == 3) then
       call fail('particles', 'type_id', 'type_id = 3: allowed [0, 1000] except 3 (gns '// &
            'treats type 3 as kinematic particles, not learned)')
@@ -313,9 +314,19 @@ contains
       call fail('field', 'file', 'file: required with type = ''table'' (a tabulated field)')
     end if
     if (st%code /= 0) return
-    ! peak memory: state, lists, cells and a frame's buffer, measured 255 B a particle at
-    ! n = 1e6 (RSS), with a margin: refused before anything is allocated
-    call check_memory_need(320.0_dp*real(self%n, dp) + 32.0_dp*2.0_dp**20, trim(path)// &
+    ! peak memory, refused before anything is allocated: state, cells and a frame's buffer
+    ! 280 B a particle; a Verlet list's pairs at most those of hexagonal packing at r_m
+    ! within r_cut + skin, 8 B each (nbr, own) and 16 more pruned (pnbr, pown, the threaded
+    ! prune's copies). Measured (RSS, n = 1e6, lj_lammps' liquid, 5.3 pairs a particle):
+    ! 314 / 361 MB on 1 / 2 threads without pruning, 366 / 445 MB with; this gives 700 MB
+    mem = 280.0_dp
+    if (self%steric_on .and. trim(self%neighbour) /= 'all_pairs') then
+      pairs = 0.5_dp*acos(-1.0_dp)*(self%r_cut + self%skin)**2*(2.0_dp/sqrt(3.0_dp))/ &
+           self%r_m**2
+      mem = mem + 8*pairs
+      if (trim(self%neighbour) == 'verlet' .and. self%prune_skin /= 0) mem = mem + 16*pairs
+    end if
+    call check_memory_need(mem*real(self%n, dp) + 32.0_dp*2.0_dp**20, trim(path)// &
          ': &particles n = '//int_str(self%n), 'reduce n', st)
     if (st%code /= 0) return
     self%fl%shape = choice_index(self%field_type, field_shapes) - 1       ! codes from 0

@@ -64,6 +64,7 @@ module neighbours
     logical :: pruned = .false.            !< pstart, pnbr, pown hold the pruned list
     integer, allocatable :: pstart(:)      !< (n + 1) CSR offsets into pnbr
     integer, allocatable :: pnbr(:), pown(:)   !< its neighbours j > i, and their rows i
+    integer, allocatable :: ptmp(:, :)     !< the threaded prune's blocks (kept: no page faults)
     real(dp), allocatable :: xpr(:), ypr(:)    !< positions at the last prune (n)
     real(dp) :: dprune = 0                 !< largest displacement since the build at that prune
     integer(i8) :: prunes = 0              !< number of prunes
@@ -97,6 +98,9 @@ contains
     allocate(nl%nbr(max(16, 8*n)), source=0)   ! zeroed: checkpoints save it whole (reproducible)
     nl%valid = .false.
     nl%builds = 0
+    nl%prune = 0          ! (the caller sets the scene's margin)
+    nl%pruned = .false.
+    nl%prunes = 0
   end subroutine nlist_setup
 
   !> Whether the list must be rebuilt before computing forces at x, y.
@@ -218,7 +222,6 @@ contains
     integer, intent(in) :: n
     real(dp), intent(in) :: x(n), y(n), d_build
     integer :: nt, t, lo, hi, kept(0:64), at(0:64), i, k, total
-    integer, allocatable :: tmp(:), tmpo(:)
     if (allocated(nl%pstart)) then
       if (size(nl%pstart) /= n + 1) deallocate(nl%pstart, nl%xpr, nl%ypr)
     end if
@@ -233,13 +236,16 @@ contains
     if (nt == 1) then
       call prune_rows(1, n, 1, nl%pnbr, nl%pown, kept(1))
     else
-      allocate(tmp(total + 1), tmpo(total + 1))
+      if (allocated(nl%ptmp)) then
+        if (size(nl%ptmp, 1) < total + 1) deallocate(nl%ptmp)
+      end if
+      if (.not. allocated(nl%ptmp)) allocate(nl%ptmp(size(nl%nbr) + 1, 2))
       !$omp parallel num_threads(nt) default(shared) private(t, lo, hi, i, k)
       t = 1
       !$ t = omp_get_thread_num() + 1
       lo = int(int(n, i8)*(t - 1)/nt) + 1
       hi = int(int(n, i8)*t/nt)
-      call prune_rows(lo, hi, nl%start(lo), tmp, tmpo, kept(t))
+      call prune_rows(lo, hi, nl%start(lo), nl%ptmp(:, 1), nl%ptmp(:, 2), kept(t))
       !$omp barrier
       !$omp single
       at(0) = 0
@@ -252,8 +258,8 @@ contains
         nl%pstart(i) = nl%pstart(i) - nl%start(lo) + at(t - 1) + 1
       end do
       do k = 1, kept(t)
-        nl%pnbr(at(t - 1) + k) = tmp(nl%start(lo) + k - 1)
-        nl%pown(at(t - 1) + k) = tmpo(nl%start(lo) + k - 1)
+        nl%pnbr(at(t - 1) + k) = nl%ptmp(nl%start(lo) + k - 1, 1)
+        nl%pown(at(t - 1) + k) = nl%ptmp(nl%start(lo) + k - 1, 2)
       end do
       !$omp end parallel
     end if
