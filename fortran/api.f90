@@ -331,28 +331,13 @@ contains
   !> far and pairs in the list. A strategy without list reports zeros.
   subroutine list_audit(missing, builds, pairs)
     integer, intent(out) :: missing, builds, pairs
-    integer :: i, j, k
-    logical :: found
-    real(dp) :: rc2
     missing = 0
     builds = int(the_sim%nl%builds)
     pairs = int(the_sim%nl%pairs)
     if (.not. the_sim%nl%valid) return
     ! a due rebuild happens before the next force evaluation: nothing can be missed
     if (nlist_due(the_sim%nl, the_sim%s%n, the_sim%s%x, the_sim%s%y)) return
-    rc2 = the_sim%m%r_cut**2
-    associate (s => the_sim%s, nl => the_sim%nl)
-      do i = 1, s%n - 1
-        do j = i + 1, s%n
-          if ((s%x(i) - s%x(j))**2 + (s%y(i) - s%y(j))**2 >= rc2) cycle
-          found = .false.
-          do k = nl%start(i), nl%start(i + 1) - 1
-            if (nl%nbr(k) == j) found = .true.
-          end do
-          if (.not. found) missing = missing + 1
-        end do
-      end do
-    end associate
+    missing = missing_pairs(the_sim%nl%start, the_sim%nl%nbr)
   end subroutine list_audit
 
   !> Audit of the pruned list (nlist_t) the next force evaluation would use as it is (one
@@ -360,28 +345,31 @@ contains
   !> r_c missing from it (must be 0), prunes so far and pairs in it. No pruned list: zeros.
   subroutine prune_audit(missing, prunes, pairs)
     integer, intent(out) :: missing, prunes, pairs
-    integer :: i, j, k
-    logical :: found
-    real(dp) :: rc2
     missing = 0
     prunes = int(the_sim%nl%prunes)
     pairs = int(the_sim%nl%ppairs)
     if (nlist_due(the_sim%nl, the_sim%s%n, the_sim%s%x, the_sim%s%y)) return   ! rebuilt first
     if (.not. nlist_prune_holds(the_sim%nl, the_sim%s%n, the_sim%s%x, the_sim%s%y)) return
+    missing = missing_pairs(the_sim%nl%pstart, the_sim%nl%pnbr)
+  end subroutine prune_audit
+
+  !> Pairs i < j closer than r_c at the current positions that the half list (start, nbr)
+  !> lacks (brute force over all pairs).
+  integer function missing_pairs(start, nbr) result(missing)
+    integer, intent(in) :: start(:), nbr(:)
+    integer :: i, j
+    real(dp) :: rc2
+    missing = 0
     rc2 = the_sim%m%r_cut**2
-    associate (s => the_sim%s, nl => the_sim%nl)
+    associate (s => the_sim%s)
       do i = 1, s%n - 1
         do j = i + 1, s%n
           if ((s%x(i) - s%x(j))**2 + (s%y(i) - s%y(j))**2 >= rc2) cycle
-          found = .false.
-          do k = nl%pstart(i), nl%pstart(i + 1) - 1
-            if (nl%pnbr(k) == j) found = .true.
-          end do
-          if (.not. found) missing = missing + 1
+          if (.not. any(nbr(start(i):start(i + 1) - 1) == j)) missing = missing + 1
         end do
       end do
     end associate
-  end subroutine prune_audit
+  end function missing_pairs
 
   !> The shared write guards of every kind's outputs, exercised directly:
   !> write `dir/name` fresh with one row at `step` (as_frames = 0: a text

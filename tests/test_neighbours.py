@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from motion import sheared_audit
 from pyorch.run import run
 
 BOX = {"particles.n": 300, "cell.width": 40.0, "cell.height": 40.0, "particles.fill_height": 40.0,
@@ -60,17 +61,7 @@ def test_list_never_misses_a_pair_under_adversarial_motion(door, make_scene, api
                       "particles.fill_height": 60.0, "particles.n": 400, "physics.wall_law": "infinite",
                       "physics.min_distance": 0.0})
     d = door(make_scene("demo", ov))
-    s = d.state()
-    rng = np.random.default_rng(1)
-    # columns move in opposite directions, rows shear: pairs cross cell borders fast
-    vx = np.where((np.floor(s["x"] / 3.0) % 2) == 0, 4.0, -4.0) + rng.normal(0, 0.5, d.n)
-    vy = np.where((np.floor(s["y"] / 3.0) % 2) == 0, -4.0, 4.0) + rng.normal(0, 0.5, d.n)
-    d.set(s["x"], s["y"], vx, vy)
-    worst = 0
-    for _ in range(300):
-        d.advance(1)
-        missing, builds, pairs = api.list_audit()
-        worst = max(worst, missing)
+    worst, (_, builds, pairs) = sheared_audit(d, api.list_audit, seed=1)
     assert worst == 0
     assert builds > 2 and pairs > 0
 

@@ -12,10 +12,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from engine_cli import partsim
+from motion import sheared_audit
 from pyorch.run import run
 from pyorch.scene import Scene
 
@@ -33,16 +33,7 @@ def test_pruned_list_never_misses_a_pair_under_fast_motion(door, make_scene, api
     again every few steps, the list itself every ~15; after every step no pair within r_c is
     missing from the pruned list the next force pass uses."""
     d = door(make_scene("demo", dict(FAST, **{"integration.prune_skin": prune})))
-    s = d.state()
-    rng = np.random.default_rng(2)
-    vx = np.where((np.floor(s["x"] / 3.0) % 2) == 0, 4.0, -4.0) + rng.normal(0, 0.5, d.n)
-    vy = np.where((np.floor(s["y"] / 3.0) % 2) == 0, -4.0, 4.0) + rng.normal(0, 0.5, d.n)
-    d.set(s["x"], s["y"], vx, vy)
-    worst = 0
-    for _ in range(300):
-        d.advance(1)
-        missing, prunes, pairs = api.prune_audit()
-        worst = max(worst, missing)
+    worst, (_, prunes, pairs) = sheared_audit(d, api.prune_audit, seed=2)
     _, builds, listed = api.list_audit()
     assert worst == 0
     assert prunes > 2 * builds > 4       # pruned between builds, many times
