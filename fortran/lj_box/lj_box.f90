@@ -318,9 +318,11 @@ contains
     ! 280 B a particle; a Verlet list's pairs at most those of hexagonal packing at r_m
     ! within r_cut + skin, 8 B each (nbr, own) and 16 more pruned (pnbr, pown, the threaded
     ! prune's copies). Measured (RSS, n = 1e6, lj_lammps' liquid, 5.3 pairs a particle):
-    ! 314 / 361 MB on 1 / 2 threads without pruning, 366 / 445 MB with; this gives 700 MB
+    ! 314 / 361 MB on 1 / 2 threads without pruning, 366 / 445 MB with; this gives 700 MB.
+    ! A list's row sums (pair_forces' lj_rx, lj_ry): 16 B a particle more.
     mem = 280.0_dp
     if (self%steric_on .and. trim(self%neighbour) /= 'all_pairs') then
+      mem = mem + 16
       pairs = 0.5_dp*acos(-1.0_dp)*(self%r_cut + self%skin)**2*(2.0_dp/sqrt(3.0_dp))/ &
            self%r_m**2
       mem = mem + 8*pairs

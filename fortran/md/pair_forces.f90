@@ -97,6 +97,10 @@ module pair_forces
   !> triangle as ranges (row i: the one range i+1..n). Kept between passes: no allocation per
   !> step; set up by threaded_pass outside its parallel region.
   real(dp), allocatable :: row_sums(:, :)
+  !> rows_pairs' Lennard-Jones row sums (n; size 1 while only the dipole law ran): the running
+  !> sum stored at every pair of a row (the last store holds the row's sum), added to the
+  !> forces after the pass (each thread's rows its own)
+  real(dp), allocatable :: lj_rx(:), lj_ry(:)
   integer, allocatable :: tri_start(:), tri_lo(:), tri_hi(:)
 
 contains
@@ -1045,9 +1049,18 @@ contains
       end if
       call chunk_sums(nk, own(k0:k0 + nk - 1), nbr(k0:k0 + nk - 1), hi_direct, &
            kernel == kernel_dipole, pw, fx, fy, s3, sx, sy, ss, mu, wsin, k_pair, hi_direct >= n, &
-           start, k0, ic, ax, ay, a3)
+           ic, ax, ay, a3, lj_rx, lj_ry)
     end do
-    if (k_hi >= start(i_lo)) then   ! the last open row
+    if (kernel /= kernel_dipole) then
+      ! the rows' sums after their reactions (every j > i: all of row i's reactions came
+      ! before it, so fx(i) gets the same additions in the same order as at the row's end)
+      do i = i_lo, i_hi
+        if (start(i + 1) > start(i)) then
+          fx(i) = fx(i) + lj_rx(i)
+          fy(i) = fy(i) + lj_ry(i)
+        end if
+      end do
+    else if (k_hi >= start(i_lo)) then   ! the last open row
       fx(ic) = fx(ic) + ax
       fy(ic) = fy(ic) + ay
       if (kernel == kernel_dipole) s3(ic) = s3(ic) + a3
@@ -1065,14 +1078,12 @@ contains
   !> s3(j) += wsin_i r3s (mu_i and wsin_i loaded once per row; r3s = 0 without the friction
   !> sums). Otherwise (Lennard-Jones) columns 1, 2 hold the pair's force itself (rows_pairs
   !> multiplies them out, vectorised: here a product inside the sums would be contracted into
-  !> two fused multiply-adds, other bits), and serially (all_direct) the reactions go without
-  !> the test on hi_direct.
+  !> two fused multiply-adds, other bits), a row's sums go without a branch at the row's end
+  !> into rx, ry (the caller adds them; see the loop), and serially (all_direct) the reactions
+  !> go without the test on hi_direct.
   subroutine chunk_sums(nk, own, nbr, hi_direct, scaled, pw, fx, fy, s3, sx, sy, ss, mu, &
-       wsin, k_pair, all_direct, start, k0, ic, ax, ay, a3)
+       wsin, k_pair, all_direct, ic, ax, ay, a3, rx, ry)
     integer, intent(in) :: nk, own(nk), nbr(nk), hi_direct
-    !> the list's offsets and the chunk's first pair k0: with all_direct, the row ends from
-    !> these (no load of own per pair)
-    integer, intent(in) :: start(*), k0
     logical, intent(in) :: scaled
     logical, intent(in) :: all_direct   !< hi_direct >= n: every reaction direct
     !> per pair m: separations dx, dy (columns 1, 2), force factor cs (3), r^-3 r3s (4); one
@@ -1082,8 +1093,10 @@ contains
     real(dp), intent(inout) :: fx(*), fy(*), s3(*), sx(*), sy(*), ss(*)
     integer, intent(inout) :: ic             !< the open row
     real(dp), intent(inout) :: ax, ay, a3    !< its sums so far
-    integer :: m, i, j, m_end
-    real(dp) :: gx, gy, c, ci, wi
+    !> all_direct: the running sum of each row, stored at each of its pairs
+    real(dp), intent(inout) :: rx(*), ry(*)
+    integer :: m, i, j, jc
+    real(dp) :: gx, gy, c, ci, wi, keep, bx, by
     if (scaled) then
       ci = k_pair*mu(ic)
       wi = wsin(ic)
@@ -1115,48 +1128,73 @@ contains
           ss(j) = ss(j) + wi*pw(m, 4)
         end if
       end do
-    else if (all_direct) then   ! (serial: no spill, no test per pair)
-      m_end = start(ic + 1) - k0      ! the last pair of row ic in the chunk (or beyond it)
-      do m = 1, nk
-        j = nbr(m)
-        if (m > m_end) then
-          fx(ic) = fx(ic) + ax
-          fy(ic) = fy(ic) + ay
-          ic = own(m)
-          m_end = start(ic + 1) - k0
-          ax = 0; ay = 0
-        end if
-        gx = pw(m, 1)
-        gy = pw(m, 2)
-        ax = ax + gx
-        ay = ay + gy
-        fx(j) = fx(j) - gx
-        fy(j) = fy(j) - gy
-      end do
     else
-      do m = 1, nk
-        i = own(m)
-        j = nbr(m)
-        if (i /= ic) then
-          fx(ic) = fx(ic) + ax
-          fy(ic) = fy(ic) + ay
-          ic = i
-          ax = 0; ay = 0
-        end if
-        gx = pw(m, 1)
-        gy = pw(m, 2)
-        ax = ax + gx
-        ay = ay + gy
-        if (j <= hi_direct) then
-          fx(j) = fx(j) - gx
-          fy(j) = fy(j) - gy
-        else
-          sx(j) = sx(j) - gx
-          sy(j) = sy(j) - gy
-        end if
-      end do
+      ! No branch at the row ends (one unpredictable branch per row of ~5 pairs cost ~25 % of
+      ! the step, bench/RESULTS.md 40.1): the running sum is multiplied by keep = 1 within a
+      ! row and 0 at its first pair (from the row ids by integer arithmetic: GCC makes a
+      ! branch of a merge or a comparison here), as a fused multiply-add: b*1 + g is b + g
+      ! rounded once, b*0 + g is g (up to the sign of a zero), so a row's sum is the same
+      ! additions as before. It is stored at every pair (the last store is the row's sum)
+      ! and rows_pairs adds it after the pass. The reactions go in pair order, directly
+      ! (serially always: all_direct) or to the spill beyond hi_direct.
+      bx = ax
+      by = ay
+      jc = ic
+      if (all_direct) then   ! (serially: no test per pair; with it, 0.96x at N 2e3 and 1e4)
+        do m = 1, nk
+          i = own(m)
+          j = nbr(m)
+          keep = same_row(i, jc)
+          bx = bx*keep + pw(m, 1)
+          by = by*keep + pw(m, 2)
+          rx(i) = bx
+          ry(i) = by
+          jc = i
+          fx(j) = fx(j) - pw(m, 1)
+          fy(j) = fy(j) - pw(m, 2)
+        end do
+      else
+        do m = 1, nk
+          i = own(m)
+          j = nbr(m)
+          keep = same_row(i, jc)
+          bx = bx*keep + pw(m, 1)
+          by = by*keep + pw(m, 2)
+          rx(i) = bx
+          ry(i) = by
+          jc = i
+          if (j <= hi_direct) then
+            fx(j) = fx(j) - pw(m, 1)
+            fy(j) = fy(j) - pw(m, 2)
+          else
+            sx(j) = sx(j) - pw(m, 1)
+            sy(j) = sy(j) - pw(m, 2)
+          end if
+        end do
+      end if
+      ax = bx
+      ay = by
+      ic = jc
     end if
   end subroutine chunk_sums
+
+  !> 1 if rows i and j are the same, else 0, by integer arithmetic (no comparison for GCC to
+  !> turn into a branch): the row sums' factor in chunk_sums.
+  pure elemental real(dp) function same_row(i, j) result(keep)
+    integer, intent(in) :: i, j
+    integer :: d
+    d = ieor(i, j)
+    keep = real(1 + shifta(ior(d, -d), 31), dp)
+  end function same_row
+
+  !> rows_pairs' Lennard-Jones row sums for n particles (allocated when too small).
+  subroutine lj_row_buffers(n)
+    integer, intent(in) :: n
+    if (allocated(lj_rx)) then
+      if (size(lj_rx) < n) deallocate(lj_rx, lj_ry)
+    end if
+    if (.not. allocated(lj_rx)) allocate(lj_rx(n), lj_ry(n))
+  end subroutine lj_row_buffers
 
   !> The buffers of the contiguous dipole passes for n particles (allocated when n changes).
   subroutine range_buffers(n)
@@ -1227,6 +1265,8 @@ contains
     !$ if (work >= 5.0e4_dp) nt = min(omp_get_max_threads(), 64)
     r2low = huge(1.0_dp)
     if (kernel == kernel_dipole .and. (mode == mode_all .or. long_rows)) call range_buffers(n)
+    ! (the dipole's rows_pairs passes it without using it: one element)
+    if (mode /= mode_all) call lj_row_buffers(merge(n, 1, kernel /= kernel_dipole))
     if (nt == 1) then
       dummy = 0
       call rows(1, n, n, fx, fy, s3, dummy(:, 1), dummy(:, 2), dummy(:, 3), r2low)
