@@ -1096,7 +1096,7 @@ contains
     !> all_direct: the running sum of each row, stored at each of its pairs
     real(dp), intent(inout) :: rx(*), ry(*)
     integer :: m, i, j, jc
-    real(dp) :: gx, gy, c, ci, wi, keep, bx, by
+    real(dp) :: gx, gy, c, ci, wi, bx, by
     if (scaled) then
       ci = k_pair*mu(ic)
       wi = wsin(ic)
@@ -1142,27 +1142,15 @@ contains
       jc = ic
       if (all_direct) then   ! (serially: no test per pair; with it, 0.96x at N 2e3 and 1e4)
         do m = 1, nk
-          i = own(m)
           j = nbr(m)
-          keep = same_row(i, jc)
-          bx = bx*keep + pw(m, 1)
-          by = by*keep + pw(m, 2)
-          rx(i) = bx
-          ry(i) = by
-          jc = i
+          call row_step(own(m), pw(m, 1), pw(m, 2), jc, bx, by, rx, ry)
           fx(j) = fx(j) - pw(m, 1)
           fy(j) = fy(j) - pw(m, 2)
         end do
       else
         do m = 1, nk
-          i = own(m)
           j = nbr(m)
-          keep = same_row(i, jc)
-          bx = bx*keep + pw(m, 1)
-          by = by*keep + pw(m, 2)
-          rx(i) = bx
-          ry(i) = by
-          jc = i
+          call row_step(own(m), pw(m, 1), pw(m, 2), jc, bx, by, rx, ry)
           if (j <= hi_direct) then
             fx(j) = fx(j) - pw(m, 1)
             fy(j) = fy(j) - pw(m, 2)
@@ -1178,14 +1166,25 @@ contains
     end if
   end subroutine chunk_sums
 
-  !> 1 if rows i and j are the same, else 0, by integer arithmetic (no comparison for GCC to
-  !> turn into a branch): the row sums' factor in chunk_sums.
-  pure elemental real(dp) function same_row(i, j) result(keep)
-    integer, intent(in) :: i, j
+  !> One pair (row i, force gx, gy on i) of chunk_sums' Lennard-Jones row sums: the running
+  !> sums bx, by of row jc continued, or restarted when i begins a new row, and stored as
+  !> row i's; jc becomes i. The restart by keep = 1 or 0 from integer arithmetic (no
+  !> comparison for GCC to turn into a branch) and b*keep + g (a fused multiply-add).
+  pure subroutine row_step(i, gx, gy, jc, bx, by, rx, ry)
+    integer, intent(in) :: i
+    real(dp), intent(in) :: gx, gy
+    integer, intent(inout) :: jc
+    real(dp), intent(inout) :: bx, by, rx(*), ry(*)
     integer :: d
-    d = ieor(i, j)
-    keep = real(1 + shifta(ior(d, -d), 31), dp)
-  end function same_row
+    real(dp) :: keep
+    d = ieor(i, jc)
+    keep = real(1 + shifta(ior(d, -d), 31), dp)   ! 1 if i == jc, else 0
+    bx = bx*keep + gx
+    by = by*keep + gy
+    rx(i) = bx
+    ry(i) = by
+    jc = i
+  end subroutine row_step
 
   !> rows_pairs' Lennard-Jones row sums for n particles (allocated when too small).
   subroutine lj_row_buffers(n)
