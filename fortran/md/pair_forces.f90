@@ -1060,10 +1060,10 @@ contains
           fy(i) = fy(i) + lj_ry(i)
         end if
       end do
-    else if (k_hi >= start(i_lo)) then   ! the last open row
+    else if (k_hi >= start(i_lo)) then   ! the dipole's last open row
       fx(ic) = fx(ic) + ax
       fy(ic) = fy(ic) + ay
-      if (kernel == kernel_dipole) s3(ic) = s3(ic) + a3
+      s3(ic) = s3(ic) + a3
     end if
     r2low = low
   end subroutine rows_pairs
@@ -1093,7 +1093,8 @@ contains
     real(dp), intent(inout) :: fx(*), fy(*), s3(*), sx(*), sy(*), ss(*)
     integer, intent(inout) :: ic             !< the open row
     real(dp), intent(inout) :: ax, ay, a3    !< its sums so far
-    !> all_direct: the running sum of each row, stored at each of its pairs
+    !> Lennard-Jones: the running sums of each row, stored at each of its pairs (unused by
+    !> the dipole)
     real(dp), intent(inout) :: rx(*), ry(*)
     integer :: m, i, j, jc
     real(dp) :: gx, gy, c, ci, wi, bx, by
