@@ -60,11 +60,14 @@ contains
   logical function all_inside(n, x, y, lo, hi) result(ok)
     integer, intent(in) :: n
     real(dp), intent(in) :: x(n), y(n), lo, hi
-    integer :: i, out
+    integer :: i
+    integer(i8) :: out
     out = 0
-    do i = 1, n   ! four counts, not one .and. chain (GCC short-circuits that: no vectors)
-      out = out + merge(0, 1, x(i) >= lo) + merge(0, 1, x(i) <= hi) + merge(0, 1, y(i) >= lo) &
-           + merge(0, 1, y(i) <= hi)
+    ! four counts, not one .and. chain (GCC short-circuits that: no vectors); 64-bit counts,
+    ! as wide as the compared doubles (32-bit ones cost a shuffle of every mask)
+    do i = 1, n
+      out = out + merge(0_i8, 1_i8, x(i) >= lo) + merge(0_i8, 1_i8, x(i) <= hi) + &
+           merge(0_i8, 1_i8, y(i) >= lo) + merge(0_i8, 1_i8, y(i) <= hi)
     end do
     ok = out == 0
   end function all_inside

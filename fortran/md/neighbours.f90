@@ -520,13 +520,8 @@ contains
             count = count + merge(1, 0, dx*dx + dy*dy < rl2 .and. j > i)
           end do
         case (row_append)
-          do k = nl%cell_start(c), k_hi
-            j = nl%cell_part(k)
-            dx = x(i) - x(j)
-            dy = y(i) - y(j)
-            row(1 + count) = j
-            count = count + merge(1, 0, dx*dx + dy*dy < rl2)*merge(1, 0, j > i)
-          end do
+          call append_near(i, nl%cell_start(c), k_hi, nl%cell_part, x, y, x(i), y(i), rl2, &
+               row, count)
         case default
           do k = nl%cell_start(c), k_hi
             j = nl%cell_part(k)
@@ -541,5 +536,24 @@ contains
       end do
     end subroutine scan_row
   end subroutine nlist_build
+
+  !> nlist_build's serial scan (row_append) of the candidates j = cell_part(k_lo..k_hi) of
+  !> particle i at (xi, yi): each stored at row(1 + count), count advanced when j > i and
+  !> j lies within rlist (r^2 < rl2). A routine of its own, not inside scan_row: there GCC 12
+  !> reloads the bases of x, y and row at every candidate (a store to row might alias them).
+  pure subroutine append_near(i, k_lo, k_hi, cell_part, x, y, xi, yi, rl2, row, count)
+    integer, intent(in) :: i, k_lo, k_hi, cell_part(*)
+    real(dp), intent(in) :: x(*), y(*), xi, yi, rl2
+    integer, intent(inout) :: row(*), count
+    integer :: k, j
+    real(dp) :: dx, dy
+    do k = k_lo, k_hi
+      j = cell_part(k)
+      dx = xi - x(j)
+      dy = yi - y(j)
+      row(1 + count) = j
+      count = count + merge(1, 0, dx*dx + dy*dy < rl2)*merge(1, 0, j > i)
+    end do
+  end subroutine append_near
 
 end module neighbours

@@ -284,52 +284,28 @@ contains
     s = 0.25_dp*c4p*w*(2*q*q - q)*on
   end subroutine lj6_kernel_rs
 
-  !> The Lennard-Jones kernel of the law over a chunk of nk squared distances, by the
-  !> evaluation of tab (exact when absent; table for any p, single and rsqrt for p = 6), chosen
-  !> here outside the loops (the law's numbers copied to locals first: the loops then
-  !> vectorise). Pairs inside the linear core (rare) get |U'(r_m)|/r exactly in a second,
-  !> scalar loop run only when the chunk has any.
+  !> The Lennard-Jones force factor of the law (force on i = cs (r_i - r_j)) over a chunk of
+  !> nk squared distances r2s [a^2], by the evaluation of tab (exact when absent; table for
+  !> any p, single and rsqrt for p = 6): the loops of lj_eval.inc with unit separations.
   subroutine lj_chunk(l, nk, r2s, cs, tab)
     type(lj_law_t), intent(in) :: l
     integer, intent(in) :: nk
     real(dp), intent(in) :: r2s(nk)
     real(dp), intent(out) :: cs(nk)
     type(pair_table_t), intent(in), optional :: tab   !< the law's evaluation
-    real(dp) :: c4p, rm2, rc2, lo2, hi2, d, on
-    integer :: m, shift, ev
-    integer(i8) :: tn, base, k
-    ev = eval_exact
-    if (present(tab)) ev = tab%eval
-    if (l%kernel /= kernel_lj6 .and. ev /= eval_table) then
-      call lj_kernel(l, r2s, cs)
-      return
-    end if
-    c4p = l%c4p; rm2 = l%rm2; rc2 = l%rc2
-    select case (ev)
-    case (eval_table)   ! the table between r_m and R; the core and the cut-off as below
-      tn = tab%n; shift = tab%shift; base = tab%base; lo2 = tab%lo2; hi2 = tab%hi2
-      do m = 1, nk
-        on = merge(1.0_dp, 0.0_dp, r2s(m) < rc2)   ! first (see lj6_kernel)
-        call table_seg(r2s(m), lo2, hi2, tn, shift, base, k, d)
-        cs(m) = (tab%c(1, k) + d*(tab%c(2, k) + d*(tab%c(3, k) + d*tab%c(4, k))))*on
-      end do
-    case (eval_single)
-      call lj6_kernel_sp(c4p, rm2, rc2, r2s, cs)
-    case (eval_rsqrt)
-      call lj6_kernel_rs(c4p, rm2, rc2, r2s, cs)
-    case default
-      call lj6_kernel(c4p, rm2, rc2, r2s, cs)
-    end select
-    ! (no core count in the loops above: with it, the table's does not vectorise; and a loop,
-    ! not minval, which GCC 12 does not vectorise: 5 % of the lj_box step)
+    real(dp) :: c4p, rm2, lc2, lo2, hi2, dd, on, s, d, unused(nk)
+    integer :: m, shift, code
+    integer(i8) :: tn, base, kk
+    code = eval_exact
+    if (present(tab)) code = tab%eval
+    ! (a loop, not minval, which GCC 12 does not vectorise: 5 % of the lj_box step)
     d = huge(1.0_dp)
     do m = 1, nk
       d = min(d, r2s(m))
     end do
-    if (d > rm2) return
-    do m = 1, nk
-      if (r2s(m) <= rm2) cs(m) = l%fcore*sqrt(1.0_dp/r2s(m))
-    end do
+    associate (d1 => ones, d2 => ones, g1 => cs, g2 => unused)   ! s*1 is s
+      include 'lj_eval.inc'
+    end associate
   end subroutine lj_chunk
 
   !> Potential energy of the law [m g a] (pairs within R): over the pairs of a half list
@@ -1003,9 +979,13 @@ contains
     real(dp), intent(inout) :: fx(n), fy(n), s3(n), sx(*), sy(*), ss(*)
     real(dp), intent(inout) :: r2low
     integer, parameter :: chunk = pair_chunk
-    integer :: i, j, m, k, k0, nk, k_hi, code, ic
-    real(dp) :: low, rk2, keep3, e5, e3, keep, ax, ay, a3
-    real(dp) :: r2s(chunk), pw(chunk, 4)   ! per pair: x_i - x_j, y_i - y_j, force factor, r^-3
+    integer :: i, j, m, k, k0, nk, k_hi, code, ic, shift
+    real(dp) :: low, rk2, keep3, e5, e3, keep, ax, ay, a3, d
+    real(dp) :: s, on, c4p, rm2, lc2, lo2, hi2, dd   ! (lj_eval.inc)
+    integer(i8) :: base, kk
+    ! per pair: x_i - x_j, y_i - y_j, then the dipole's force factor and r^-3, or the
+    ! Lennard-Jones force on i (x, y)
+    real(dp) :: r2s(chunk), pw(chunk, 4)
     type(pair_table_t), intent(in), optional :: tab   !< the law's evaluation
     integer(i8) :: ks(pair_chunk), tn
     real(dp) :: ds(pair_chunk)
@@ -1030,22 +1010,25 @@ contains
         pw(m, 1) = x(i) - x(j)
         pw(m, 2) = y(i) - y(j)
       end do
+      d = huge(1.0_dp)
       do m = 1, nk                  ! (vectorised)
         r2s(m) = pw(m, 1)*pw(m, 1) + pw(m, 2)*pw(m, 2)
-        low = min(low, r2s(m))
+        d = min(d, r2s(m))
       end do
+      low = min(low, d)
       if (kernel == kernel_dipole) then
-        pw(1:nk, 3) = 1             ! (the law's input factor; lj_chunk writes its own)
+        pw(1:nk, 3) = 1             ! (the law's input factor)
         ! force factor times k mu_i mu_j in chunk_sums (no gathers of mu, wsin here); r^-3
         ! times 0 without the friction sums (s3 then gets + 0)
         associate (c => pw(:, 3), r3 => pw(:, 4), ci => ones, w3 => keep3)
           include 'dipole_eval.inc'
         end associate
       else
-        call lj_chunk(l, nk, r2s, pw(:, 3), tab)
-        ! the forces on i (vectorised here; chunk_sums adds the rounded products as before)
-        pw(1:nk, 1) = pw(1:nk, 3)*pw(1:nk, 1)
-        pw(1:nk, 2) = pw(1:nk, 3)*pw(1:nk, 2)
+        ! the forces on i into columns 3, 4 from the law's loop itself (chunk_sums adds these
+        ! rounded products: a product inside the sums would be contracted, other bits)
+        associate (d1 => pw(:, 1), d2 => pw(:, 2), g1 => pw(:, 3), g2 => pw(:, 4))
+          include 'lj_eval.inc'
+        end associate
       end if
       call chunk_sums(nk, own(k0:k0 + nk - 1), nbr(k0:k0 + nk - 1), hi_direct, &
            kernel == kernel_dipole, pw, fx, fy, s3, sx, sy, ss, mu, wsin, k_pair, hi_direct >= n, &
@@ -1076,9 +1059,9 @@ contains
   !> the caller adds the last open row), the reaction on j directly (j <= hi_direct) or to the
   !> spill arrays. Dipole (scaled): the force factor is k mu_i mu_j cs, and s3(i) += wsin_j r3s,
   !> s3(j) += wsin_i r3s (mu_i and wsin_i loaded once per row; r3s = 0 without the friction
-  !> sums). Otherwise (Lennard-Jones) columns 1, 2 hold the pair's force itself (rows_pairs
-  !> multiplies them out, vectorised: here a product inside the sums would be contracted into
-  !> two fused multiply-adds, other bits), a row's sums go without a branch at the row's end
+  !> sums). Otherwise (Lennard-Jones) columns 3, 4 hold the pair's force on i itself (the
+  !> law's loop in rows_pairs multiplies it out, vectorised: here a product inside the sums
+  !> would be contracted into two fused multiply-adds, other bits), a row's sums go without a branch at the row's end
   !> into rx, ry (the caller adds them; see the loop), and serially (all_direct) the reactions
   !> go without the test on hi_direct.
   subroutine chunk_sums(nk, own, nbr, hi_direct, scaled, pw, fx, fy, s3, sx, sy, ss, mu, &
@@ -1086,8 +1069,8 @@ contains
     integer, intent(in) :: nk, own(nk), nbr(nk), hi_direct
     logical, intent(in) :: scaled
     logical, intent(in) :: all_direct   !< hi_direct >= n: every reaction direct
-    !> per pair m: separations dx, dy (columns 1, 2), force factor cs (3), r^-3 r3s (4); one
-    !> array (one base register in the scalar loop, which otherwise reloads four from the stack)
+    !> per pair m: separations dx, dy (columns 1, 2), then the dipole's force factor cs (3)
+    !> and r^-3 r3s (4), or the Lennard-Jones force on i, x (3) and y (4); one array (one base register in the scalar loop, which otherwise reloads four from the stack)
     real(dp), intent(in) :: pw(pair_chunk, 4)
     real(dp), intent(in) :: mu(*), wsin(*), k_pair
     real(dp), intent(inout) :: fx(*), fy(*), s3(*), sx(*), sy(*), ss(*)
@@ -1144,20 +1127,20 @@ contains
       if (all_direct) then   ! (serially: no test per pair; with it, 0.96x at N 2e3 and 1e4)
         do m = 1, nk
           j = nbr(m)
-          call row_step(own(m), pw(m, 1), pw(m, 2), jc, bx, by, rx, ry)
-          fx(j) = fx(j) - pw(m, 1)
-          fy(j) = fy(j) - pw(m, 2)
+          call row_step(own(m), pw(m, 3), pw(m, 4), jc, bx, by, rx, ry)
+          fx(j) = fx(j) - pw(m, 3)
+          fy(j) = fy(j) - pw(m, 4)
         end do
       else
         do m = 1, nk
           j = nbr(m)
-          call row_step(own(m), pw(m, 1), pw(m, 2), jc, bx, by, rx, ry)
+          call row_step(own(m), pw(m, 3), pw(m, 4), jc, bx, by, rx, ry)
           if (j <= hi_direct) then
-            fx(j) = fx(j) - pw(m, 1)
-            fy(j) = fy(j) - pw(m, 2)
+            fx(j) = fx(j) - pw(m, 3)
+            fy(j) = fy(j) - pw(m, 4)
           else
-            sx(j) = sx(j) - pw(m, 1)
-            sy(j) = sy(j) - pw(m, 2)
+            sx(j) = sx(j) - pw(m, 3)
+            sy(j) = sy(j) - pw(m, 4)
           end if
         end do
       end if
