@@ -4,7 +4,8 @@
 # CPU seconds) of short runs of every kind, run to the end and paused + resumed.
 #   bash scripts/compare_builds.sh OLD_PARTSIM NEW_PARTSIM [WORKDIR]
 # Runs: tiny scenes of every kind with every output on (text and binary frames), each
-# complete and paused at a step then resumed to the end; every runs/*.nml paused after
+# complete and paused at a step then resumed to the end (the Lennard-Jones law also by each
+# pair evaluation, its linear core reached); every runs/*.nml paused after
 # 40 units and resumed to 80 (COMPARE_ONLY=1: compare the runs already in WORKDIR). Exit 0 when every file matches, 1 otherwise (the
 # differing files are listed).
 set -euo pipefail
@@ -45,6 +46,23 @@ cat > "$S/lj.nml" <<'EOF'
 &output frame_every = 20, energy_every = 10, field_grid = 4, frames_format = 'both',
   checkpoint_every = 70 /
 EOF
+# the Lennard-Jones law by every evaluation through the Verlet list (rows_pairs), hot enough
+# that pairs come inside r_m (the linear core), p = 6 and 12
+for ev in exact single rsqrt table; do
+  for p in 6 12; do
+    [ $p = 12 ] && [ $ev = single -o $ev = rsqrt ] && continue
+    cat > "$S/lj_${ev}_p$p.nml" <<EOF
+&scene kind = 'lj_box' /
+&box l = 40.0 /
+&particles n = 200, min_distance = 2.2, velocities = 'maxwell', temperature = 2.0, seed = 4 /
+&physics alpha = 0.0 /
+&field type = 'none' /
+&steric p = $p, r_m = 1.95, r_cut = 5.0, neighbour = 'verlet', skin = 0.6, pair_eval = '$ev' /
+&integration method = 'velocity_verlet', dt = 1.0e-3, steps = 400 /
+&output frame_every = 50, energy_every = 5, checkpoint_every = 90 /
+EOF
+  done
+done
 # the bed: the demo scene, a short stroke (1 D1 after 2 T of relaxation), every output on,
 # both frame formats
 sed -e "s/^  frame_every = 5000/  frame_every = 100\n  energy_every = 50\n  frames_format = 'both'\n  checkpoint_every = 150/" \
@@ -105,6 +123,9 @@ run_both "$S/osc.nml" osc 23
 run_both "$S/rods.nml" rods 9
 run_both "$S/dla.nml" dla 17
 run_both "$S/lj.nml" lj 131
+for f in "$S"/lj_*_p*.nml; do
+  run_both "$f" "$(basename "$f" .nml)" 170
+done
 run_both "$S/bed.nml" bed 260
 # every shipped top-level scene: paused after 40 units, resumed to 80
 for scene in "$ROOT"/runs/*.nml; do
