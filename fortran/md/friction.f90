@@ -82,7 +82,8 @@ contains
     b = 1.0_dp + 0.5_dp*h*gamma
     ib = 1.0_dp/b
     rh = 1.0_dp/h
-    ! branch-free (the loop vectorises): the positive root of b x^2 + bb x - c = 0 is
+    ! branch-free (the loop vectorises, given -fno-trapping-math: meson.build): the positive
+    ! root of b x^2 + bb x - c = 0 is
     ! max(q/b, -c/q) with q = -(bb + sign(r, bb))/2, r = sqrt(bb^2 + 4 b c): the form without
     ! cancellation for either sign of bb (the other expression is the negative root)
     do i = 1, n
