@@ -242,7 +242,9 @@ def main() -> None:
                     help="time lammps_compare's grid scenes instead (set-up subtracted)")
     ap.add_argument("--pair-eval", nargs="+", default=["exact"],
                     help="--grid-points: the pair evaluations")
-    ap.add_argument("--csv", default=None, help="bench/results/ name of the table")
+    ap.add_argument("--csv", default=None,
+                    help="bench/results/ name of the table (every mode; default by mode: "
+                         "ab_grid.csv, ab_lj.csv, ab_instructions.csv, ab_engines.csv)")
     ap.add_argument("--drop-keys", nargs="+", default=[], metavar="GROUP.KEY",
                     help="--grid-points, --lj: keys left out of the scenes (an older engine "
                          "refuses a key it does not know; the defaults then apply)")
@@ -272,7 +274,7 @@ def main() -> None:
                 ib = per_step_instructions(args.b, args.scene, over, Path(tmp), f"b{k}")
                 rows.append({"scene": label, "A_instructions_per_step": ia,
                              "B_instructions_per_step": ib, "B_over_A": ib / ia})
-        common.save_table(pd.DataFrame(rows), "ab_instructions.csv")
+        common.save_table(pd.DataFrame(rows), args.csv or "ab_instructions.csv")
         return
     scenes = [(label, args.scene, over) for label, (_, over) in SCENES.items()]
     if args.kinds:
@@ -296,7 +298,7 @@ def main() -> None:
                          "B_best_cpu_us_per_step": 1e6 * min(cb),
                          "B_over_A_cpu_best": min(cb) / min(ca),
                          "repeats": args.repeat})
-    common.save_table(pd.DataFrame(rows), "ab_engines.csv")
+    common.save_table(pd.DataFrame(rows), args.csv or "ab_engines.csv")
 
 
 if __name__ == "__main__":
