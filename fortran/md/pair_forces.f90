@@ -1002,6 +1002,9 @@ contains
       nk = min(chunk, k_hi - k0 + 1)
       ! scalar loads, not vector gathers: with AVX-512 GCC 12 gathers 8 doubles per
       ! vgatherdpd, which on Zen 4 cost 1.5x the scalar loop (bench/RESULTS.md 35.10)
+      ! (r^2 and the chunk's least in this scalar loop too, not in a vector pass of their own:
+      ! the same bits, 1.02x the LJ step, bench/RESULTS.md 41.5)
+      d = huge(1.0_dp)
       !GCC$ novector
       do m = 1, nk                  ! distances, shared by the laws
         k = k0 + m - 1
@@ -1009,9 +1012,6 @@ contains
         j = nbr(k)
         pw(m, 1) = x(i) - x(j)
         pw(m, 2) = y(i) - y(j)
-      end do
-      d = huge(1.0_dp)
-      do m = 1, nk                  ! (vectorised)
         r2s(m) = pw(m, 1)*pw(m, 1) + pw(m, 2)*pw(m, 2)
         d = min(d, r2s(m))
       end do
