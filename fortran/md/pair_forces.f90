@@ -298,7 +298,7 @@ contains
     integer(i8) :: tn, base, kk
     code = eval_exact
     if (present(tab)) code = tab%eval
-    ! (a loop, not minval, which GCC 12 does not vectorise: 5 % of the lj_box step)
+    ! (a loop, not minval, which GCC 12 does not vectorise)
     d = huge(1.0_dp)
     do m = 1, nk
       d = min(d, r2s(m))
@@ -1061,16 +1061,17 @@ contains
   !> s3(j) += wsin_i r3s (mu_i and wsin_i loaded once per row; r3s = 0 without the friction
   !> sums). Otherwise (Lennard-Jones) columns 3, 4 hold the pair's force on i itself (the
   !> law's loop in rows_pairs multiplies it out, vectorised: here a product inside the sums
-  !> would be contracted into two fused multiply-adds, other bits), a row's sums go without a branch at the row's end
-  !> into rx, ry (the caller adds them; see the loop), and serially (all_direct) the reactions
-  !> go without the test on hi_direct.
+  !> would be contracted into two fused multiply-adds, other bits), a row's sums go without a
+  !> branch at the row's end into rx, ry (the caller adds them; see the loop), and serially
+  !> (all_direct) the reactions go without the test on hi_direct.
   subroutine chunk_sums(nk, own, nbr, hi_direct, scaled, pw, fx, fy, s3, sx, sy, ss, mu, &
        wsin, k_pair, all_direct, ic, ax, ay, a3, rx, ry)
     integer, intent(in) :: nk, own(nk), nbr(nk), hi_direct
     logical, intent(in) :: scaled
     logical, intent(in) :: all_direct   !< hi_direct >= n: every reaction direct
     !> per pair m: separations dx, dy (columns 1, 2), then the dipole's force factor cs (3)
-    !> and r^-3 r3s (4), or the Lennard-Jones force on i, x (3) and y (4); one array (one base register in the scalar loop, which otherwise reloads four from the stack)
+    !> and r^-3 r3s (4), or the Lennard-Jones force on i, x (3) and y (4); one array (one base
+    !> register in the scalar loop, which otherwise reloads four from the stack)
     real(dp), intent(in) :: pw(pair_chunk, 4)
     real(dp), intent(in) :: mu(*), wsin(*), k_pair
     real(dp), intent(inout) :: fx(*), fy(*), s3(*), sx(*), sy(*), ss(*)
