@@ -49,11 +49,12 @@ module pair_forces
   !> AVX-512 Xeon of bench/RESULTS.md section 26; 48 on the AVX2 EPYC of section 35.6, where
   !> the rows measured 1.26-1.33x the ranges at 15 pairs per row, 1.05x at 35, 1.0x at 61
   !> (exact; single 1.3-1.8x at every length)
-  !> Below kept_row_pairs (and from mid_row_pairs on) the rows go by rows_kept (flat chunks,
-  !> only the pairs below r_c: 1.05-1.22x rows_list at 10-14 listed pairs per row on Zen 4;
-  !> at ~36 (r_c 7) 0.96-0.97x and 1.11x in different A/Bs, so rows_list stays above 24;
-  !> bench/RESULTS.md 37).
-  real(dp), parameter :: mid_row_pairs = 8, kept_row_pairs = 24, long_row_pairs = 48
+  !> Below kept_row_pairs (and from mid_row_pairs on) the rows go by rows_kept (flat chunks of
+  !> the pruned list). With the pair arrays written by position (no compression of the pairs
+  !> below r_c) it measured 1.05-1.20x the compressing rows_kept at 6-10 pruned pairs per row
+  !> (r_c 3-4 + skin 1) and 1.01-1.09x rows_list at 16-33 (r_c 5-7) on Zen 3, so it takes the
+  !> rows up to long_row_pairs (bench/RESULTS.md 42; before: 24, section 37).
+  real(dp), parameter :: mid_row_pairs = 8, kept_row_pairs = 48, long_row_pairs = 48
   !> Lanes of the contiguous dipole loops (dipole_ranges): the sums on i are kept in this many
   !> fixed lanes (j = j0 + l - 1 goes to lane l), so the loop vectorises without reordering a
   !> floating-point sum; the order depends on the lane count only, never on the machine
@@ -419,8 +420,8 @@ contains
     !> the rows are long
     integer, intent(in), optional, contiguous :: rstart(:), rlo(:), rhi(:)
     type(pair_table_t), intent(in), optional :: tab   !< the law's table (used when on)
-    !> every mu(i) equals mu(1) (one species): rows_list (24-48 listed pairs per row) takes
-    !> mu_j as mu_i instead of a gather per pair, rows_kept (8-24) fills the chunk's factors
+    !> every mu(i) equals mu(1) (one species): rows_list (from 48 listed pairs per row, single) takes
+    !> mu_j as mu_i instead of a gather per pair, rows_kept (8-48) fills the chunk's factors
     !> once instead of a load and a product per listed pair (the same values, the same bits;
     !> ~1.07x at r_c 7, 0.97-1.08x at r_c 3-4; in rows_pairs' sums it measured slower:
     !> bench/RESULTS.md 38.3, 38.7)
@@ -580,25 +581,28 @@ contains
     r2low = low
   end subroutine row_segment
 
-  !> Dipole rows i_lo..i_hi of a half neighbour list (rows of mid_row_pairs .. kept_row_pairs), the pairs in flat chunks of pair_chunk
-  !> (whole rows and pieces of rows) walked row by row (x_i, y_i, mu_i, wsin_i are scalars of
-  !> each row's segment, not gathered per pair as in rows_pairs). Three passes per chunk:
-  !> distances per row segment (scalar loads), keeping only the pairs that can act (r^2 below
-  !> rk_keep: the others get the weight 0 exactly, so they add only signed zeros); the law over
-  !> the kept pairs of the whole chunk (vectorised: with rows of ~10 listed pairs one row's law
-  !> was a chain of dependent divisions and roots, bench/RESULTS.md 37); then per row segment
-  !> the sums on i (carried over a chunk's end while the row lasts, added to fx(i) when it ends,
-  !> every row in order, empty ones too) and the reactions on j (j > hi_direct to the spill
-  !> arrays, as in rows_all). The same operations on every acting pair, in the same order, as
-  !> one row at a time over every listed pair.
+  !> Dipole rows i_lo..i_hi of a half neighbour list (rows of mid_row_pairs .. kept_row_pairs,
+  !> usually the list pruned to r_c + prune), the pairs in flat chunks of pair_chunk (whole rows
+  !> and pieces of rows). Three passes per chunk, every array written by the pair's position
+  !> in the chunk: the separations and r^2 (one flat loop, the row i = own(k) loaded per pair:
+  !> no branch at the rows' ends); the law over the whole chunk (vectorised; a pair at r >= r_c
+  !> gets the weight 0 exactly, so it adds only signed zeros below); then row by row the sums
+  !> on i (carried over a chunk's end while the row lasts, added to fx(i) when it ends, every
+  !> row in order, empty ones too) and the reactions on j (j > hi_direct to the spill arrays,
+  !> as in rows_all). The same operations on every acting pair, in the same order, as one row
+  !> at a time over every listed pair. Until bench/RESULTS.md 42 the first pass kept only the
+  !> pairs below r_c, compressed: its stores at an index known only after the pair's r^2 made
+  !> the distance loop 3-4x slower than writing by position (a micro-benchmark of the loop
+  !> alone), more than the law on the 25-35 % of pruned pairs beyond r_c costs.
   subroutine rows_kept(sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, shift4, &
-       check, with_r3, mu_one, start, nbr, fx, fy, s3, sx, sy, ss, r2low, tab, rowmax)
+       check, with_r3, mu_one, start, nbr, own, fx, fy, s3, sx, sy, ss, r2low, tab, rowmax)
     type(split_t), intent(in) :: sp
     integer, intent(in) :: i_lo, i_hi, hi_direct, n
     real(dp), intent(in) :: x(n), y(n), mu(n), wsin(n), k_pair, rc2, shift4
     logical, intent(in) :: check, with_r3
     logical, intent(in) :: mu_one   !< every mu(j) = mu(1): no load of mu_j per pair
     integer, intent(in) :: start(n + 1), nbr(*)
+    integer, intent(in) :: own(*)   !< the row of each listed pair
     real(dp), intent(inout) :: fx(n), fy(n), s3(n)
     real(dp), intent(inout) :: sx(*), sy(*), ss(*)
     real(dp), intent(inout) :: r2low   !< running minimum of r^2
@@ -608,120 +612,95 @@ contains
     !> differently), so the pruned list sums as the whole one; absent: by the chunk's j
     integer, intent(in), optional :: rowmax(n)
     integer, parameter :: chunk = pair_chunk
-    integer :: i, j, m, k, k0, k_hi, nk, nc, ns, s, r_open, row_of(chunk), seg_lo(chunk + 1)
-    integer :: js(chunk)
+    integer :: i, j, m, m_lo, m_hi, k, k0, k_hi, nk, r_open
     logical :: direct, all_direct, by_row
-    real(dp) :: xi, yi, ci0, c_row, wi, fxi, fyi, s3i, low, rk2, rk_keep, e5, e3, keep, dx, dy, r2
-    real(dp) :: cs(chunk), r3s(chunk), r2s(chunk), ds(chunk), cis(chunk)
+    real(dp) :: wi, fxi, fyi, s3i, low, rk2, e5, e3, keep, d
+    real(dp) :: cs(chunk), r3s(chunk), r2s(chunk), ds(chunk), cis(chunk), dxs(chunk), dys(chunk)
     integer(i8) :: ks(chunk), tn
     integer :: code
     code = eval_exact
     if (present(tab)) code = tab%eval
     rk2 = huge(1.0_dp)   ! pairs at r >= r_c skipped only with check
     if (check) rk2 = rc2
-    ! the split's near side S(r) weights the pairs (not the mask at rk2): it is exactly 0 from
-    ! a few rounding errors above r_c^2 on (x >= 1 in near_weight), so those pairs may go
-    rk_keep = rk2
-    if (sp%on .and. check) rk_keep = rc2*(1 + 16*epsilon(1.0_dp))
     low = r2low   ! local running minimum (see row_segment)
     if (i_hi < i_lo) return
     r_open = i_lo   ! the row whose sums fxi, fyi, s3i hold
     fxi = 0; fyi = 0; s3i = 0
     wi = wsin(i_lo)
     k_hi = start(i_hi + 1) - 1
-    i = i_lo        ! the row of pair k0
+    all_direct = hi_direct >= n
+    by_row = present(rowmax) .and. .not. all_direct
     do k0 = start(i_lo), k_hi, chunk
       nk = min(chunk, k_hi - k0 + 1)
-      ! the chunk's row segments: segment s is row row_of(s), its kept pairs
-      ! seg_lo(s)..seg_lo(s+1)-1 of the compressed arrays js, r2s, cs, cis
-      ns = 0
-      nc = 0
-      k = k0
-      do while (k <= k0 + nk - 1)
-        do while (start(i + 1) <= k)   ! (rows ended or empty)
-          i = i + 1
-        end do
-        ns = ns + 1
-        row_of(ns) = i
-        seg_lo(ns) = nc + 1
-        xi = x(i); yi = y(i)
-        ci0 = k_pair*mu(i)
-        c_row = merge(1.0_dp, ci0, sp%on)
-        do k = k, min(start(i + 1), k0 + nk) - 1   ! distances (scalar loads), kept pairs
-          j = nbr(k)
-          dx = xi - x(j)
-          dy = yi - y(j)
-          r2 = dx*dx + dy*dy
-          low = min(low, r2)
-          js(nc + 1) = j
-          r2s(nc + 1) = r2
-          if (.not. mu_one) cs(nc + 1) = mu(j)*c_row   ! (loop-invariant: unswitched)
-          nc = nc + merge(1, 0, r2 < rk_keep)   ! (no branch: 35-45 % go at r_c 3-4 + skin 1)
-        end do
+      d = huge(1.0_dp)
+      !GCC$ novector
+      do m = 1, nk
+        k = k0 + m - 1
+        i = own(k)
+        j = nbr(k)
+        dxs(m) = x(i) - x(j)
+        dys(m) = y(i) - y(j)
+        r2s(m) = dxs(m)*dxs(m) + dys(m)*dys(m)
+        d = min(d, r2s(m))
+        if (.not. mu_one) cs(m) = mu(j)*merge(1.0_dp, k_pair*mu(i), sp%on)
       end do
-      ! one species: mu_j = mu_i = mu(i_lo), and c_row the same for every row: one fill
-      if (mu_one) cs(1:nc) = mu(i_lo)*merge(1.0_dp, k_pair*mu(i_lo), sp%on)
-      seg_lo(ns + 1) = nc + 1
-      ! the law: c(m) = ((S ci(m)) c(m)) e5, so without a split (S = 1) k mu_i is in c(m)
-      ! already (c_row: the same product) and ci(m) = 1; with one, ci(m) = k mu_i per pair
+      low = min(low, d)
+      if (mu_one) cs(1:nk) = mu(i_lo)*merge(1.0_dp, k_pair*mu(i_lo), sp%on)
       if (sp%on) then
-        do s = 1, ns
-          cis(seg_lo(s):seg_lo(s + 1) - 1) = k_pair*mu(row_of(s))
+        do m = 1, nk
+          cis(m) = k_pair*mu(own(k0 + m - 1))
         end do
       else
-        cis(1:nc) = 1
+        cis(1:nk) = 1
       end if
-      associate (c => cs, r3 => r3s, ci => cis, w3 => 1.0_dp, nk => nc)
+      associate (c => cs, r3 => r3s, ci => cis, w3 => 1.0_dp)
         include 'dipole_eval.inc'
       end associate
-      all_direct = hi_direct >= n
-      by_row = present(rowmax) .and. .not. all_direct
       direct = all_direct
       if (.not. (direct .or. by_row)) direct = maxval(nbr(k0:k0 + nk - 1)) <= hi_direct
-      do s = 1, ns
-        if (row_of(s) /= r_open) then   ! the open row ended: its sums, then the empty rows'
-          call close_rows(r_open, row_of(s) - 1, with_r3, fxi, fyi, s3i, fx, fy, s3)
-          r_open = row_of(s)
+      m_lo = 1
+      do while (m_lo <= nk)
+        i = own(k0 + m_lo - 1)
+        if (i /= r_open) then   ! the open row ended: its sums, then the empty rows'
+          call close_rows(r_open, i - 1, with_r3, fxi, fyi, s3i, fx, fy, s3)
+          r_open = i
           wi = wsin(r_open)
         end if
+        m_hi = min(nk, start(i + 1) - k0)
         if (by_row) direct = rowmax(r_open) <= hi_direct
-        xi = x(r_open); yi = y(r_open)
         if (direct) then   ! the usual case: every j is ours
-          do m = seg_lo(s), seg_lo(s + 1) - 1
-            j = js(m)
-            dx = xi - x(j)
-            dy = yi - y(j)
-            fxi = fxi + cs(m)*dx
-            fyi = fyi + cs(m)*dy
-            fx(j) = fx(j) - cs(m)*dx
-            fy(j) = fy(j) - cs(m)*dy
+          do m = m_lo, m_hi
+            j = nbr(k0 + m - 1)
+            fxi = fxi + cs(m)*dxs(m)
+            fyi = fyi + cs(m)*dys(m)
+            fx(j) = fx(j) - cs(m)*dxs(m)
+            fy(j) = fy(j) - cs(m)*dys(m)
           end do
           if (with_r3) then
-            do m = seg_lo(s), seg_lo(s + 1) - 1
-              j = js(m)
+            do m = m_lo, m_hi
+              j = nbr(k0 + m - 1)
               s3i = s3i + wsin(j)*r3s(m)
               s3(j) = s3(j) + wi*r3s(m)
             end do
           end if
         else                          ! rows next to a later thread's block
-          do m = seg_lo(s), seg_lo(s + 1) - 1
-            j = js(m)
-            dx = xi - x(j)
-            dy = yi - y(j)
-            fxi = fxi + cs(m)*dx
-            fyi = fyi + cs(m)*dy
+          do m = m_lo, m_hi
+            j = nbr(k0 + m - 1)
+            fxi = fxi + cs(m)*dxs(m)
+            fyi = fyi + cs(m)*dys(m)
             if (with_r3) s3i = s3i + wsin(j)*r3s(m)
             if (j <= hi_direct) then
-              fx(j) = fx(j) - cs(m)*dx
-              fy(j) = fy(j) - cs(m)*dy
+              fx(j) = fx(j) - cs(m)*dxs(m)
+              fy(j) = fy(j) - cs(m)*dys(m)
               if (with_r3) s3(j) = s3(j) + wi*r3s(m)
             else
-              sx(j) = sx(j) - cs(m)*dx
-              sy(j) = sy(j) - cs(m)*dy
+              sx(j) = sx(j) - cs(m)*dxs(m)
+              sy(j) = sy(j) - cs(m)*dys(m)
               if (with_r3) ss(j) = ss(j) + wi*r3s(m)
             end if
           end do
         end if
+        m_lo = m_hi + 1
       end do
     end do
     call close_rows(r_open, i_hi, with_r3, fxi, fyi, s3i, fx, fy, s3)
@@ -1304,11 +1283,11 @@ contains
              with_r3, rstart, rlo, rhi, ax, ay, a3, bx, by, b3, lw, tab)
       else if (kernel == kernel_dipole .and. mid_rows .and. kept_rows .and. use_p) then
         call rows_kept(sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, &
-             shift4, check, with_r3, one, pstart, pnbr, ax, ay, a3, bx, by, b3, lw, tab, &
+             shift4, check, with_r3, one, pstart, pnbr, pown, ax, ay, a3, bx, by, b3, lw, tab, &
              rowmax)
       else if (kernel == kernel_dipole .and. mid_rows .and. kept_rows) then
         call rows_kept(sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, &
-             shift4, check, with_r3, one, start, nbr, ax, ay, a3, bx, by, b3, lw, tab, rowmax)
+             shift4, check, with_r3, one, start, nbr, own, ax, ay, a3, bx, by, b3, lw, tab, rowmax)
       else if (kernel == kernel_dipole .and. mid_rows) then
         call rows_list(sp, i_lo, i_hi, hi_direct, n, x, y, mu, wsin, k_pair, rc2, &
              shift4, check, with_r3, one, start, nbr, ax, ay, a3, bx, by, b3, lw, tab)
