@@ -14,7 +14,7 @@ module engine
   use initial, only: place_particles
   use start_file, only: start_t
   use pair_forces, only: pair_forces_all, pair_forces_list, pair_forces_far, pair_energy_all, &
-       max_bits, list_takes_pruned
+       max_bits, list_takes_pruned, long_row_pairs
   use pair_eval, only: dipole_eval_build
   use pair_table, only: eval_code, eval_exact, eval_table
   use scene_input, only: real_str, int_str
@@ -154,6 +154,7 @@ contains
     if (sim%m%neighbour /= nb_all_pairs) then
       sim%nl%with_owner = .true.      ! the flat pair loop (pair_forces_list) needs own
       sim%nl%with_ranges = .true.     ! and the long rows their ranges (verlet only)
+      sim%nl%ranges_from = long_row_pairs
       call nlist_setup(sim%nl, sim%m%neighbour, sim%m%r_cut, sim%m%skin, sim%m%width, &
            sim%m%height, sim%s%n)
       if (sim%m%neighbour == nb_verlet) sim%nl%prune = sim%m%prune_skin
@@ -250,10 +251,9 @@ contains
       if (pruned) then
         call pair_forces_list(s%n, s%x, s%y, s%mu, s%wsin, m%k_pair, m%r_cut**2, m%shift4, &
              nl%check, r3, nl%start, nl%nbr, s%fx, s%fy, s%s3, r2min, own=nl%own, &
-             split=m%split, rstart=nl%rstart, rlo=nl%rlo, rhi=nl%rhi, tab=m%tab, &
-             mu_one=sim%mu_one, pstart=nl%pstart, pnbr=nl%pnbr, pown=nl%pown, &
-             rowmax=nl%rowmax)
-      else if (allocated(nl%rstart) .and. nl%strategy == nb_verlet) then
+             split=m%split, tab=m%tab, mu_one=sim%mu_one, pstart=nl%pstart, pnbr=nl%pnbr, &
+             pown=nl%pown, rowmax=nl%rowmax)   ! (rows short enough for the pruned list: no ranges)
+      else if (nl%has_ranges) then
         call pair_forces_list(s%n, s%x, s%y, s%mu, s%wsin, m%k_pair, m%r_cut**2, m%shift4, &
              nl%check, r3, nl%start, nl%nbr, s%fx, s%fy, s%s3, r2min, own=nl%own, &
              split=m%split, rstart=nl%rstart, rlo=nl%rlo, rhi=nl%rhi, tab=m%tab, &

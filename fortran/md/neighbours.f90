@@ -53,6 +53,11 @@ module neighbours
     !> Verlet rule they are beyond r_c until the next rebuild (a pair within r_c now was within
     !> r_c + skin at the build, so listed), and the kernel's r_c test masks them out.
     logical :: with_ranges = .false.
+    !> ... built only for a list of at least ranges_from pairs per row (the caller sets the
+    !> kernel's threshold: shorter rows never go by ranges, so their ranges would cost ~2 % of
+    !> the step for nothing, bench/RESULTS.md 42); has_ranges: rstart, rlo, rhi hold this list's
+    real(dp) :: ranges_from = 0
+    logical :: has_ranges = .false.
     integer, allocatable :: rstart(:), rlo(:), rhi(:)
     real(dp), allocatable :: xref(:), yref(:)  !< positions at the last build (n)
     !> The pruned list (GROMACS' dynamic pruning, for a verlet list with check): the listed
@@ -297,13 +302,15 @@ contains
   end subroutine nlist_prune
 
   !> own(k) = the row i of listed pair k (with_owner lists only), and the ranges (with_ranges,
-  !> verlet only): both follow from start and nbr, also after a restore.
+  !> verlet only, rows of ranges_from pairs or more): both follow from start and nbr, also after a restore.
   subroutine nlist_owners(nl, n)
     type(nlist_t), intent(inout) :: nl
     integer, intent(in) :: n
     integer :: i
     nl%pruned = .false.   ! (a new list, or one restored: pruned again before its next use)
-    if (nl%with_ranges .and. nl%strategy == nb_verlet) call nlist_ranges(nl, n)
+    nl%has_ranges = nl%with_ranges .and. nl%strategy == nb_verlet .and. &
+         real(nl%start(n + 1) - 1, dp) >= nl%ranges_from*real(n, dp)
+    if (nl%has_ranges) call nlist_ranges(nl, n)
     if (.not. nl%with_owner) return
     if (allocated(nl%own)) then
       if (size(nl%own) /= size(nl%nbr)) deallocate(nl%own)

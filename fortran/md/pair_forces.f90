@@ -34,7 +34,7 @@ module pair_forces
   private
 
   public :: dipole_kernel, pair_forces_all, pair_forces_list, pair_forces_far, pair_energy_all
-  public :: list_takes_pruned
+  public :: list_takes_pruned, long_row_pairs
   public :: lj_law_t, lj_law, lj_kernel, lj_energy
   public :: split_t, split_of
   public :: pair_table_t, max_bits
