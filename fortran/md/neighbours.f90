@@ -56,6 +56,7 @@ module neighbours
     !> ... built only for a list of at least ranges_from pairs per row (the caller sets the
     !> kernel's threshold: shorter rows never go by ranges, so their ranges would cost ~2 % of
     !> the step for nothing, bench/RESULTS.md 42); has_ranges: rstart, rlo, rhi hold this list's
+    !> (and are deallocated otherwise)
     real(dp) :: ranges_from = 0
     logical :: has_ranges = .false.
     integer, allocatable :: rstart(:), rlo(:), rhi(:)
@@ -308,9 +309,16 @@ contains
     integer, intent(in) :: n
     integer :: i
     nl%pruned = .false.   ! (a new list, or one restored: pruned again before its next use)
+    ! (without them rstart, rlo, rhi are deallocated: passed as optional arguments, they are
+    ! then absent, Fortran 2008)
     nl%has_ranges = nl%with_ranges .and. nl%strategy == nb_verlet .and. &
          real(nl%start(n + 1) - 1, dp) >= nl%ranges_from*real(n, dp)
-    if (nl%has_ranges) call nlist_ranges(nl, n)
+    if (nl%has_ranges) then
+      call nlist_ranges(nl, n)
+    else if (allocated(nl%rstart)) then
+      deallocate(nl%rstart)
+      if (allocated(nl%rlo)) deallocate(nl%rlo, nl%rhi)
+    end if
     if (.not. nl%with_owner) return
     if (allocated(nl%own)) then
       if (size(nl%own) /= size(nl%nbr)) deallocate(nl%own)
