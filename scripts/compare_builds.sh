@@ -5,7 +5,8 @@
 #   bash scripts/compare_builds.sh OLD_PARTSIM NEW_PARTSIM [WORKDIR]
 # Runs: tiny scenes of every kind with every output on (text and binary frames), each
 # complete and paused at a step then resumed to the end (the Lennard-Jones law also by each
-# pair evaluation, its linear core reached); every runs/*.nml paused after
+# pair evaluation, its linear core reached; the bed's list kernels on the N 2000 grid scene at
+# r_c 3, 7, 10); every runs/*.nml paused after
 # 40 units and resumed to 80 (COMPARE_ONLY=1: compare the runs already in WORKDIR). Exit 0 when every file matches, 1 otherwise (the
 # differing files are listed).
 set -euo pipefail
@@ -71,6 +72,25 @@ sed -e "s/^  frame_every = 5000/  frame_every = 100\n  energy_every = 50\n  fram
     "$ROOT/runs/demo.nml" > "$S/bed.nml"
 grep -q "t_relax = 2.0" "$S/bed.nml" && grep -q "hf = 74.0" "$S/bed.nml"
 grep -q "frames_format = 'both'" "$S/bed.nml"
+# the bed's list kernels (bench/lammps_compare.py's grid scene at N 2000): rows_kept at r_c 3
+# and 7 (with the friction sums at 3), the ranges at r_c 10, rows_list at r_c 10 in single
+for rc_ev in 3:exact:first_order 7:exact:none 10:exact:none 10:single:none; do
+  IFS=: read -r rc ev fr <<< "$rc_ev"
+  cat > "$S/grid_${rc}_${ev}.nml" <<EOF
+&scene kind = 'magnet_bed', title = 'list kernels' /
+&material density = 7368.0, diameter = 0.006, gap = 0.0031, gravity_si = 9.8, remanence = 1.3,
+  thickness = 0.003 /
+&cell height = 74.0, width = 74.0 /
+&particles fill_height = -1.0, jitter = 0.1, n = 2000, n_species = 1, placement = 'interleave',
+  seed = 1, speed_init = 0.01 /
+&physics dry_friction = '$fr', gravity = .false., min_distance = 0.5, pair_law = 'dipole',
+  wall_law = 'experimental' /
+&integration dt = 0.001, integrator = 'velocity_verlet', neighbour = 'verlet', pair_eval = '$ev',
+  r_cut = $rc, skin = 1.0, tail = 'none' /
+&protocol expand = .true., h_start = 74.0, piston = 'fixed', t_end = 0.3 /
+&output checkpoint_every = 100, frame_every = 50, energy_every = 25 /
+EOF
+done
 
 fail=0 fail_ckpt=0
 ckpt_diffs=()
@@ -127,6 +147,9 @@ for f in "$S"/lj_*_p*.nml; do
   run_both "$f" "$(basename "$f" .nml)" 170
 done
 run_both "$S/bed.nml" bed 260
+for f in "$S"/grid_*.nml; do
+  run_both "$f" "$(basename "$f" .nml)" 130
+done
 # every shipped top-level scene: paused after 40 units, resumed to 80
 for scene in "$ROOT"/runs/*.nml; do
   label=shipped_$(basename "$scene" .nml)
