@@ -2,13 +2,13 @@
 !> the pruned list of the grid's lattice (N 1e5, r_c 3, skin 1, prune 0.25), in seven forms:
 !> 1 the compressing loop (js, r2 stored at the next free slot), 2 r^2 stored by position,
 !> 3 the same vectorised (gathers), 4 by position then a compressing loop, 5 a branch per pair,
-!> 6 by position plus a compressed index, 7 as 6 then a gather of the kept pairs.
+!> 6 by position plus a compressed index (GCC drops that store: never read), 7 as 6 then a
+!> gather of the kept pairs, 8 j and i compressed (prune_rows), 9 only the index compressed.
 !> Built against an engine build's static library (its module files):
 !>   B=/tmp/bld   # meson setup $B . -Dnative=true && ninja -C $B partsim
 !>   gfortran -O3 -march=native -fno-trapping-math -I$B/libpsengine.a.p \
 !>       bench/prototypes/distance_pass.f90 $B/libpsengine.a -fopenmp -o /tmp/dp
 !>   OMP_NUM_THREADS=1 /tmp/dp 100000 3 300     # N, r_c, passes: ns per pruned pair
-! the distance pass alone over the pruned list, variants
 module mic
   use kinds, only: dp
   implicit none
@@ -156,6 +156,46 @@ contains
       r2s(m) = t(k)
     end do
   end subroutine
+  subroutine dist_prune(nk, own, nbr, x, y, rk, js, r2s, nc, low)
+    integer, intent(in) :: nk, own(nk), nbr(nk)
+    real(dp), intent(in) :: x(*), y(*), rk
+    integer, intent(out) :: js(nk), nc
+    real(dp), intent(out) :: r2s(nk)
+    real(dp), intent(inout) :: low
+    integer :: k, i, j
+    real(dp) :: dx, dy
+    integer :: ow(256)
+    nc = 0
+    !GCC$ novector
+    do k = 1, nk
+      i = own(k); j = nbr(k)
+      dx = x(i) - x(j); dy = y(i) - y(j)
+      js(nc + 1) = j
+      ow(nc + 1) = i
+      nc = nc + merge(1, 0, dx*dx + dy*dy < rk)
+    end do
+    r2s(1) = ow(1)
+  end subroutine
+  subroutine dist_prune2(nk, own, nbr, x, y, rk, js, r2s, nc, low)
+    integer, intent(in) :: nk, own(nk), nbr(nk)
+    real(dp), intent(in) :: x(*), y(*), rk
+    integer, intent(out) :: js(nk), nc
+    real(dp), intent(out) :: r2s(nk)
+    real(dp), intent(inout) :: low
+    integer :: k, i, j
+    real(dp) :: dx, dy
+    integer :: ix(256)
+    nc = 0
+    !GCC$ novector
+    do k = 1, nk
+      i = own(k); j = nbr(k)
+      dx = x(i) - x(j); dy = y(i) - y(j)
+      ix(nc + 1) = k
+      nc = nc + merge(1, 0, dx*dx + dy*dy < rk)
+    end do
+    r2s(1) = ix(1)
+    js(1) = ix(nc)
+  end subroutine
 end module
 program micro
   use kinds, only: dp
@@ -186,7 +226,7 @@ program micro
   call nlist_setup(nl, nb_verlet, rc, 1.0_dp, w, w, n)
   nl%prune = 0.25_dp
   call nlist_refresh(nl, s, .true.)
-  do v = 1, 7
+  do v = 1, 9
     call cpu_time(t0)
     tot = 0; low = huge(1.0_dp)
     do p = 1, passes
@@ -200,6 +240,8 @@ program micro
         case (5); call dist_branch(nk, nl%pown(k0:), nl%pnbr(k0:), s%x, s%y, rc**2, js, r2s, nc, low)
         case (6); call dist_idx(nk, nl%pown(k0:), nl%pnbr(k0:), s%x, s%y, rc**2, js, r2s, nc, low)
         case (7); call dist_idx2(nk, nl%pown(k0:), nl%pnbr(k0:), s%x, s%y, rc**2, js, r2s, nc, low)
+        case (8); call dist_prune(nk, nl%pown(k0:), nl%pnbr(k0:), s%x, s%y, rc**2, js, r2s, nc, low)
+        case (9); call dist_prune2(nk, nl%pown(k0:), nl%pnbr(k0:), s%x, s%y, rc**2, js, r2s, nc, low)
         end select
         tot = tot + nc + int(r2s(1))
       end do
