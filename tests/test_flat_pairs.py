@@ -1,7 +1,7 @@
 """The dipole list kernel on short rows (issue #17): the pairs of a half Verlet list taken as one
-flat sequence in chunks (rows_pairs) when the list holds < 8 pairs per row (row by row from 8,
-as contiguous ranges of j from 48: tests/test_neighbours.py; from 8 to 24 the flat chunks of
-the pairs below r_c, rows_kept, tested below). The flat path gives the O(N^2)
+flat sequence in chunks (rows_pairs) when the list holds < 8 pairs per row (from 8 to 48 the
+flat chunks of the pruned list, rows_kept, tested below; from 48 as contiguous ranges of j:
+tests/test_neighbours.py, row by row with pair_eval = 'single': rows_list, below). The flat path gives the O(N^2)
 forces (the frozen far field refreshed every step completes a short list to all pairs),
 serially and on the threads (the threaded pass with its spill buffers starts at 5e4 listed
 pairs), and the threads change only round-off."""
@@ -118,16 +118,16 @@ def test_kept_rows_threads_change_only_round_off(door, make_scene, api):
     assert 0 < worst < 1e-12             # the threaded pass ran (spills), round-off only
 
 
-# One species (every mu equal): rows_list then takes mu_j as mu_i (the engine's mu_one,
-# bench/RESULTS.md 38.3), two species gather it per pair. Both against all pairs, for rows_list
-# (r_c 5 + skin 1 at density 0.6: 24-48 listed pairs per row) and rows_kept (r_c 3 + skin 1 at
-# density 0.42: 8-24, one code path for both), with the sharp (frozen; tail_switch -1: 0) and
+# One species (every mu equal): rows_kept then takes mu_j as mu_i (the engine's mu_one,
+# bench/RESULTS.md 38.3), two species gather it per pair. Both against all pairs, for rows_kept
+# on short rows (r_c 3 + skin 1 at density 0.42: 8-24 listed pairs per row) and on longer ones
+# (r_c 5 + skin 1 at density 0.6: 24-48; rows_list's until bench/RESULTS.md 42), with the sharp (frozen; tail_switch -1: 0) and
 # the smooth (linear: 1 D1, the split, rows_kept's factor without k mu_i) hand-over
 @pytest.mark.parametrize("tail", ["frozen", "linear"])
 @pytest.mark.parametrize("two", [False, True], ids=["one_species", "two_species"])
 @pytest.mark.parametrize("r_cut, density, lo, hi", [(3.0, KEPT_DENSITY, 8, 24),
                                                     (5.0, 0.6, 24, 48)],
-                         ids=["rows_kept", "rows_list"])
+                         ids=["rows_kept", "rows_kept_long"])
 def test_row_kernels_with_one_and_two_species_equal_all_pairs(door, make_scene, api, two, r_cut,
                                                               density, lo, hi, tail):
     n = 900
@@ -141,5 +141,26 @@ def test_row_kernels_with_one_and_two_species_equal_all_pairs(door, make_scene, 
                                                     "integration.tail_every": 1,
                                                     "integration.tail_switch": -1.0}))
     assert lo * n <= list_shape(api) < hi * n
+    scale = np.max(np.hypot(ref_x, ref_y))
+    assert np.max(np.hypot(fx - ref_x, fy - ref_y)) < 1e-12 * scale
+
+
+# rows_list: rows of 48 or more listed pairs in single precision (the ranges' 8-lane loop is
+# slower there, pair_forces.f90): r_c 7 + skin 1 at density 0.6, one and two species, against
+# all pairs in single precision too (the same law on the same r^2 for every pair: only the
+# order of the double sums differs)
+@pytest.mark.parametrize("two", [False, True], ids=["one_species", "two_species"])
+def test_rows_list_in_single_precision_equals_all_pairs(door, make_scene, api, two):
+    n, density = 900, 0.6
+    side = math.sqrt(n / density)
+    over = dict(FLAT, **(TWO_SPECIES if two else {}),
+                **{"particles.n": n, "cell.width": side, "cell.height": side,
+                   "particles.fill_height": side, "protocol.h_start": side,
+                   "integration.r_cut": 7.0, "integration.pair_eval": "single"})
+    ref_x, ref_y = forces(door, make_scene, dict(over, **{"integration.neighbour": "all_pairs"}))
+    fx, fy = forces(door, make_scene, dict(over, **{"integration.tail": "frozen",
+                                                    "integration.tail_every": 1,
+                                                    "integration.tail_switch": -1.0}))
+    assert list_shape(api) >= 48 * n
     scale = np.max(np.hypot(ref_x, ref_y))
     assert np.max(np.hypot(fx - ref_x, fy - ref_y)) < 1e-12 * scale
