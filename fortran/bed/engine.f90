@@ -253,7 +253,7 @@ contains
              nl%check, r3, nl%start, nl%nbr, s%fx, s%fy, s%s3, r2min, own=nl%own, &
              split=m%split, rstart=nl%rstart, rlo=nl%rlo, rhi=nl%rhi, tab=m%tab, &
              mu_one=sim%mu_one, pstart=nl%pstart, pnbr=nl%pnbr, pown=nl%pown, &
-             rowmax=nl%rowmax)   ! (the ranges absent when not allocated: nlist_t has_ranges)
+             rowmax=nl%rowmax)   ! (the ranges absent when not built: nlist_t ranges_from)
       else if (nl%strategy == nb_verlet) then   ! (the ranges absent when not built)
         call pair_forces_list(s%n, s%x, s%y, s%mu, s%wsin, m%k_pair, m%r_cut**2, m%shift4, &
              nl%check, r3, nl%start, nl%nbr, s%fx, s%fy, s%s3, r2min, own=nl%own, &

@@ -55,10 +55,9 @@ module neighbours
     logical :: with_ranges = .false.
     !> ... built only for a list of at least ranges_from pairs per row (the caller sets the
     !> kernel's threshold: shorter rows never go by ranges, so their ranges would cost ~2 % of
-    !> the step for nothing, bench/RESULTS.md 42); has_ranges: rstart, rlo, rhi hold this list's
-    !> (and are deallocated otherwise)
+    !> the step for nothing, bench/RESULTS.md 42); otherwise rstart, rlo, rhi are deallocated
+    !> (passed as optional arguments, they are then absent)
     real(dp) :: ranges_from = 0
-    logical :: has_ranges = .false.
     integer, allocatable :: rstart(:), rlo(:), rhi(:)
     real(dp), allocatable :: xref(:), yref(:)  !< positions at the last build (n)
     !> The pruned list (GROMACS' dynamic pruning, for a verlet list with check): the listed
@@ -311,9 +310,8 @@ contains
     nl%pruned = .false.   ! (a new list, or one restored: pruned again before its next use)
     ! (without them rstart, rlo, rhi are deallocated: passed as optional arguments, they are
     ! then absent, Fortran 2008)
-    nl%has_ranges = nl%with_ranges .and. nl%strategy == nb_verlet .and. &
-         real(nl%start(n + 1) - 1, dp) >= nl%ranges_from*real(n, dp)
-    if (nl%has_ranges) then
+    if (nl%with_ranges .and. nl%strategy == nb_verlet .and. &
+        real(nl%start(n + 1) - 1, dp) >= nl%ranges_from*real(n, dp)) then
       call nlist_ranges(nl, n)
     else if (allocated(nl%rstart)) then
       deallocate(nl%rstart)
