@@ -206,22 +206,14 @@ program micro
   type(state_t) :: s
   type(nlist_t) :: nl
   integer :: n, m, i, k, passes, side, p, v, k0, nk, nc, js(256), tot
-  real(dp) :: rc, w, t0, t1, u(2), low, r2s(256)
+  real(dp) :: rc, w, t0, t1, u(2), low, r2s(256), jit
   character(len=32) :: arg
   call get_command_argument(1, arg); read(arg, *) n
   call get_command_argument(2, arg); read(arg, *) rc
   call get_command_argument(3, arg); read(arg, *) passes
   side = int(sqrt(real(n, dp))); n = side*side; w = 1.6_dp*side
-  call state_allocate(s, n)
-  call random_seed(put=[(12345 + 7*i, i = 1, 64)])
-  k = 0
-  do i = 1, side
-    do m = 1, side
-      k = k + 1; call random_number(u)
-      s%x(k) = 1.6_dp*(m - 0.5_dp) + 0.1_dp*(u(1) - 0.5_dp)
-      s%y(k) = 1.6_dp*(i - 0.5_dp) + 0.1_dp*(u(2) - 0.5_dp)
-    end do
-  end do
+  jit = 0.1_dp
+  include 'grid_lattice.inc'
   nl%with_owner = .true.; nl%with_ranges = .true.
   call nlist_setup(nl, nb_verlet, rc, 1.0_dp, w, w, n)
   nl%prune = 0.25_dp

@@ -34,17 +34,7 @@ program harness
   side = int(sqrt(real(n, dp)))
   n = side*side
   w = 1.6_dp*side
-  call state_allocate(s, n)
-  call random_seed(put=[(12345 + 7*i, i = 1, 64)])
-  k = 0
-  do i = 1, side
-    do m = 1, side
-      k = k + 1
-      call random_number(u)
-      s%x(k) = 1.6_dp*(m - 0.5_dp) + jit*(u(1) - 0.5_dp)
-      s%y(k) = 1.6_dp*(i - 0.5_dp) + jit*(u(2) - 0.5_dp)
-    end do
-  end do
+  include 'grid_lattice.inc'
   s%mu = 1; s%wsin = 1
   nl%with_owner = .true.; nl%with_ranges = .true.
   call nlist_setup(nl, nb_verlet, rc, 1.0_dp, w, w, n)

@@ -23,16 +23,7 @@ program micro3
   call get_command_argument(3, arg); read(arg, *) passes
   call get_command_argument(4, arg); read(arg, *) jit
   side = int(sqrt(real(n, dp))); n = side*side; w = 1.6_dp*side
-  call state_allocate(s, n)
-  call random_seed(put=[(12345 + 7*i, i = 1, 64)])
-  k = 0
-  do i = 1, side
-    do m = 1, side
-      k = k + 1; call random_number(u)
-      s%x(k) = 1.6_dp*(m - 0.5_dp) + jit*(u(1) - 0.5_dp)
-      s%y(k) = 1.6_dp*(i - 0.5_dp) + jit*(u(2) - 0.5_dp)
-    end do
-  end do
+  include 'grid_lattice.inc'
   nl%with_owner = .true.
   call nlist_setup(nl, nb_verlet, rc, 1.0_dp, w, w, n)
   call nlist_refresh(nl, s)
