@@ -13,6 +13,7 @@ module bed_method
   use engine, only: sim_t, sim_load, sim_step, pairs_per_step, sim_note_mu
   use protocol, only: phase_names
   use scene, only: scene_keys
+  use neighbours, only: nlist_prune_json
   use pair_table, only: table_json
   use schema, only: schema_t
   use output, only: output_declare
@@ -162,7 +163,7 @@ contains
     associate (m => self%sim%m, sim => self%sim)
       text = '  "n_particles": '//int_str(int(sim%s%n, i8))//','//nl// &
            '  "species_counts": '//counts()//','//nl//start_json(sim%start)// &
-           '  "list_builds": '//int_str(sim%nl%builds)//','//nl// &
+           '  "list_builds": '//int_str(sim%nl%builds)//','//nl//nlist_prune_json(sim%nl)// &
            '  "pairs_per_step": '//int_str(pairs_per_step(sim))//','//nl// &
            '  "pair_evaluations": '//int_str(sim%nl%evaluated)//','//nl// &
            table_json(m%tab)// &

@@ -19,7 +19,8 @@ module engine
   use pair_table, only: eval_code, eval_exact, eval_table
   use scene_input, only: real_str, int_str
   use parallel, only: init_threads, par_min_loop, my_share
-  use neighbours, only: nlist_t, nlist_setup, nlist_refresh, nlist_pruned, nb_all_pairs, nb_verlet
+  use neighbours, only: nlist_t, nlist_setup, nlist_refresh, nlist_pruned, nlist_set_prune, &
+       nb_all_pairs, nb_verlet
   use walls, only: wall_block, wall_energy, wall_chunk
   use friction, only: gravity_force, viscous_friction, dry_friction, friction_at_vn
   use integrators, only: estimate_velocity, finish_velocity, advance
@@ -157,7 +158,7 @@ contains
       sim%nl%ranges_from = long_row_pairs
       call nlist_setup(sim%nl, sim%m%neighbour, sim%m%r_cut, sim%m%skin, sim%m%width, &
            sim%m%height, sim%s%n)
-      if (sim%m%neighbour == nb_verlet) sim%nl%prune = sim%m%prune_skin
+      if (sim%m%neighbour == nb_verlet) call nlist_set_prune(sim%nl, sim%m%prune_skin)
     end if
     sim%s%step = 0
     call piston_at(sim%p, 0.0_dp, h, phase)

@@ -53,7 +53,7 @@ module model
     ! neighbours and truncation
     integer :: neighbour = 0             !< nb_* of module neighbours
     real(dp) :: r_cut = 0, skin = 0
-    real(dp) :: prune_skin = 0   !< margin of the pruned list over r_c [D1] (0: none)
+    real(dp) :: prune_skin = 0   !< margin of the pruned list over r_c [D1] (0: none, < 0: automatic)
     real(dp) :: shift4 = 0               !< r_c^-4 for the shifted force, else 0
     logical :: tail_frozen = .false.     !< a far field beyond r_c evaluated every tail_every steps
     logical :: tail_linear = .false.     !< ... and extrapolated linearly in between
@@ -132,7 +132,7 @@ contains
     end select
     m%r_cut = sc%r_cut
     m%skin = sc%skin
-    m%prune_skin = merge(0.25_dp*sc%skin, sc%prune_skin, sc%prune_skin < 0)
+    m%prune_skin = sc%prune_skin
     m%shift4 = 0
     if (m%neighbour /= 0 .and. trim(sc%truncation) == 'shifted_force') m%shift4 = sc%r_cut**(-4)
     m%tail_frozen = m%neighbour /= 0 .and. (trim(sc%tail) == 'frozen' .or. trim(sc%tail) == 'linear')

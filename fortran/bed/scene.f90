@@ -63,7 +63,7 @@ module scene
     real(dp) :: dt = 2.0e-3_dp           !< time step [T]
     real(dp) :: r_cut = 7.13_dp          !< pair cut-off r_c [D1] (truncated strategies)
     real(dp) :: skin = 1.0_dp            !< Verlet skin r_v - r_c [D1]
-    !> margin of the pruned list over r_c [D1] (verlet): < 0 automatic (skin/4), 0 none
+    !> margin of the pruned list over r_c [D1] (verlet): < 0 automatic (neighbours nlist_margin), 0 none
     real(dp) :: prune_skin = -1.0_dp
     character(len=name_len) :: truncation = 'plain'  !< | 'shifted_force'
     character(len=name_len) :: tail = 'none'         !< | 'frozen' (far field every tail_every steps)
@@ -213,7 +213,7 @@ contains
     call s%key('skin', sc%skin, 'D1', 'Verlet skin r_v - r_c (in (0, 1e3])')
     call s%key('prune_skin', sc%prune_skin, 'D1', 'verlet: the list pruned to r_c + '// &
          'prune_skin, again when a particle moved prune_skin/2 (speed only: the same bits; '// &
-         '< 0: skin/4, 0: off; in [0, skin))', lo=-1.0_dp, hi=1.0e3_dp)
+         '< 0: automatic, chosen at every build, 0: off; in [0, skin))', lo=-1.0_dp, hi=1.0e3_dp)
     call s%key('truncation', sc%truncation, '', 'pair force at r_c', &
          choices='plain|shifted_force')
     call s%key('tail', sc%tail, '', 'far field r >= r_c: none, frozen every tail_every '// &
@@ -346,7 +346,7 @@ contains
            call rpos('integration', 'skin', sc%skin, 0.0_dp, 1.0e3_dp)
       if (trim(sc%neighbour) == 'verlet' .and. sc%prune_skin >= sc%skin) &
            call bad('integration', 'prune_skin', real_str(sc%prune_skin), 'allowed [0, skin = '// &
-           real_str(sc%skin)//') D1, or < 0 for skin/4')
+           real_str(sc%skin)//') D1, or < 0 for automatic')
     end if
 
     hs = sc%h_start

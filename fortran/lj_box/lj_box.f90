@@ -24,6 +24,7 @@ module lj_box
   use ckpt, only: ckpt_writer_t, ckpt_put, file_crc64
   use state, only: state_t, state_allocate
   use neighbours, only: nlist_t, nlist_setup, nlist_refresh, nlist_owners, nlist_pruned, &
+       nlist_set_prune, nlist_prune_json, &
        nb_all_pairs, nb_cells, nb_verlet
   use pair_forces, only: lj_law_t, lj_law, pair_forces_all, pair_forces_list, lj_energy, &
        pair_table_t, max_bits
@@ -87,7 +88,7 @@ module lj_box
     real(dp) :: r_cut = 5                   !< R [a]
     character(len=nm) :: neighbour = 'verlet'
     real(dp) :: skin = 0.6_dp               !< [a]
-    real(dp) :: prune_skin = -1.0_dp        !< pruned list margin over r_cut [a] (< 0: skin/4)
+    real(dp) :: prune_skin = -1.0_dp        !< pruned list margin over r_cut [a] (< 0: automatic)
     character(len=nm) :: pair_eval = 'exact'   !< | 'table' | 'single' | 'rsqrt'
     real(dp) :: pair_table_error = 1.0e-6_dp  !< pair_eval /= 'exact': largest relative force error
     ! &physics
@@ -178,7 +179,7 @@ contains
          lo=0.0_dp, hi=1.0e3_dp)
     call s%key('prune_skin', self%prune_skin, 'a', 'verlet: the list pruned to r_cut + '// &
          'prune_skin, again when a particle moved prune_skin/2 (speed only: the same bits; '// &
-         '< 0: skin/4, 0: off; in [0, skin))', lo=-1.0_dp, hi=1.0e3_dp)
+         '< 0: automatic, chosen at every build, 0: off; in [0, skin))', lo=-1.0_dp, hi=1.0e3_dp)
     call s%key('pair_eval', self%pair_eval, '', 'force evaluation: exact (the reference), a '// &
          'table in r^2 between r_m and r_cut (no division) built at load to pair_table_error, '// &
          'or for p = 6 single precision pair arithmetic (double sums) or rsqrt (1/r^2 by '// &
@@ -301,7 +302,7 @@ contains
            'with neighbour = ''verlet''')
     else if (trim(self%neighbour) == 'verlet' .and. self%prune_skin >= self%skin) then
       call fail('steric', 'prune_skin', 'prune_skin = '//real_str(self%prune_skin)// &
-           ': allowed [0, skin = '//real_str(self%skin)//') [a], or < 0 for skin/4')
+           ': allowed [0, skin = '//real_str(self%skin)//') [a], or < 0 for automatic')
     else if (trim(self%contact) == 'surface' .and. self%l <= 2) then
       call fail('box', 'l', 'l = '//real_str(self%l)//': allowed (2, 1e6] [a] with &walls '// &
            'contact = ''surface'' (the centres stay a away from the walls)')
@@ -411,7 +412,7 @@ contains
            int(self%n))
       self%nl%with_owner = .true.
       if (self%strategy == nb_verlet) &
-           self%nl%prune = merge(0.25_dp*self%skin, self%prune_skin, self%prune_skin < 0)
+           call nlist_set_prune(self%nl, self%prune_skin)
     end if
   end subroutine build
 
@@ -802,7 +803,7 @@ contains
     character(len=1), parameter :: nl = achar(10)
     text = '  "n_particles": '//int_str(self%n)//','//nl// &
          '  "wall_hits": '//int_str(self%wall_hits)//','//nl// &
-         '  "list_builds": '//int_str(self%nl%builds)//','//nl// &
+         '  "list_builds": '//int_str(self%nl%builds)//','//nl//nlist_prune_json(self%nl)// &
          '  "pairs_evaluated": '//int_str(self%nl%evaluated)//','//nl// &
          '  "field_conservative": '//trim(merge('true ', 'false', &
          field_has_potential(self%fl)))//','//nl// &

@@ -11,11 +11,12 @@ module neighbours
   use kinds, only: dp, i8
   use parallel, only: par_min_loop
   use state, only: state_t, state_permute
+  use scene_input, only: int_str, json_real
   implicit none
   private
 
   public :: nlist_t, nlist_setup, nlist_due, nlist_bin, nlist_build, nlist_refresh, nlist_owners
-  public :: nlist_pruned, nlist_prune_holds
+  public :: nlist_pruned, nlist_prune_holds, nlist_set_prune, nlist_prune_json
   public :: nb_all_pairs, nb_cells, nb_verlet, nb_thesis
 
   integer, parameter :: nb_all_pairs = 0, nb_cells = 1, nb_verlet = 2, nb_thesis = 3
@@ -29,6 +30,15 @@ module neighbours
   integer, parameter :: cell_split = 2
   !> what nlist_build's scan_row does with a row
   integer, parameter :: row_count = 1, row_fill = 2, row_append = 3, row_candidates = 4
+  !> The automatic margin of the pruned list (nlist_set_prune, a scene's prune_skin < 0): the
+  !> candidates as fractions of the skin, the first period's margin (narrow: its many prunes
+  !> measure the motion), and what a prune costs per listed pair (plus one per particle)
+  !> against what a force pass costs per pruned pair (prune_rows ~2 ns a listed pair, rows_kept
+  !> 3-5 ns a pruned pair, bench/RESULTS.md 42.3; with 0.5 the model's work per margin follows
+  !> the measured step at N 2e3, r_c 3 and 4: section 43)
+  integer, parameter :: n_margins = 5
+  real(dp), parameter :: margin_fractions(n_margins) = [0.05_dp, 0.1_dp, 0.15_dp, 0.25_dp, 0.4_dp]
+  real(dp), parameter :: margin_start = 0.1_dp, prune_cost = 0.5_dp
 
   type :: nlist_t
     integer :: strategy = nb_all_pairs
@@ -74,6 +84,10 @@ module neighbours
     real(dp) :: dprune = 0                 !< largest displacement since the build at that prune
     integer(i8) :: prunes = 0              !< number of prunes
     integer(i8) :: ppairs = 0              !< pairs in the current pruned list
+    !> The margin chosen at every build (nlist_margin) when automatic: the force passes and the
+    !> prunes (not counting the one after the build) of the current build period, the changes
+    logical :: prune_auto = .false.
+    integer(i8) :: period_steps = 0, period_prunes = 0, margin_changes = 0
     logical :: valid = .false.             !< a list exists for the current ordering
     integer(i8) :: builds = 0              !< number of list builds
     integer(i8) :: pairs = 0               !< pairs in the current list
@@ -103,7 +117,8 @@ contains
     allocate(nl%nbr(max(16, 8*n)), source=0)   ! zeroed: checkpoints save it whole (reproducible)
     nl%valid = .false.
     nl%builds = 0
-    nl%prune = 0          ! (the caller sets the scene's margin)
+    nl%prune = 0          ! (the caller sets the scene's margin: nlist_set_prune)
+    nl%prune_auto = .false.
     nl%pruned = .false.
     nl%prunes = 0
   end subroutine nlist_setup
@@ -157,11 +172,12 @@ contains
     type(state_t), intent(inout) :: s
     logical, intent(in), optional :: prune
     integer :: k
-    logical :: want, keep
+    logical :: want, keep, period
     real(dp) :: db2, dp2
     want = .false.
     if (present(prune)) want = prune
     want = want .and. nl%prune > 0 .and. nl%strategy == nb_verlet .and. nl%check
+    if (want) nl%period_steps = nl%period_steps + 1
     keep = .false.   ! the pruned list holds
     if (want) then
       keep = nlist_prune_holds(nl, s%n, s%x, s%y, dp2)
@@ -169,6 +185,7 @@ contains
       ! (margin: square roots of rounded squares; a near tie goes to the exact test)
       if (keep .and. sqrt(dp2) + nl%dprune <= 0.5_dp*nl%skin*(1 - 1.0e-12_dp)) return
     end if
+    period = nl%valid   ! a build now ends a build period (not: the first, or after a reorder)
     if (.not. nl%valid .or. nl%strategy == nb_cells) then
       db2 = huge(1.0_dp)
     else
@@ -178,6 +195,9 @@ contains
       call rebuild()
       db2 = 0
       keep = .false.
+      if (want .and. nl%prune_auto) call nlist_margin(nl, s%n, s%x, s%y, period)
+    else if (want .and. .not. keep) then
+      nl%period_prunes = nl%period_prunes + 1
     end if
     if (want .and. .not. keep) call nlist_prune(nl, s%n, s%x, s%y, sqrt(db2))
   contains
@@ -209,6 +229,76 @@ contains
     end if
     if (present(dp2)) dp2 = d2
   end function nlist_prune_holds
+
+  !> The pruned list's margin from a scene's prune_skin [length]: 0 none, > 0 that margin, < 0
+  !> automatic (nlist_margin: margin_start*skin until the first build period has been seen).
+  subroutine nlist_set_prune(nl, prune_skin)
+    type(nlist_t), intent(inout) :: nl
+    real(dp), intent(in) :: prune_skin
+    nl%prune_auto = prune_skin < 0
+    nl%prune = prune_skin
+    if (nl%prune_auto) nl%prune = margin_start*nl%skin
+    nl%period_steps = 0
+    nl%period_prunes = 0
+    nl%margin_changes = 0
+  end subroutine nlist_set_prune
+
+  !> The automatic margin, chosen at a build from the list just built at x, y and the build
+  !> period that ended: the one of the candidates p (margin_fractions of the skin) with the
+  !> least work per period, S P(p) + prune_cost (pairs + n) M(p): P(p) the listed pairs within
+  !> r_c + p now (what the force passes take), M(p) the prunes of a period (a prune comes when
+  !> a particle moved p/2, a build when it moved skin/2). The period that ended had S force
+  !> passes and m + 1 prunes at margin p0, so M(p0) = m + 1 and M(skin) = 1; between them and
+  !> beyond, M(p) = (m + 1) (p0/p)^a with a = ln(m + 1)/ln(skin/p0) clipped to [1, 2]
+  !> (ballistic 1 .. diffusive 2), and at least 1. Integer counts and step numbers only: the
+  !> same choice for any thread count; the forces are the same bits at any margin anyway.
+  subroutine nlist_margin(nl, n, x, y, period)
+    type(nlist_t), intent(inout) :: nl
+    integer, intent(in) :: n
+    real(dp), intent(in) :: x(n), y(n)
+    logical, intent(in) :: period   !< a build period ended (false: the first build, a restart)
+    integer(i8) :: cnt(n_margins)
+    real(dp) :: p(n_margins), r2c(n_margins), work(n_margins), r2, m1, a, s_len
+    integer :: i, k, j, c
+    s_len = real(nl%period_steps, dp)
+    m1 = real(nl%period_prunes + 1, dp)
+    nl%period_steps = 0
+    nl%period_prunes = 0
+    if (.not. period .or. s_len <= 0) return   ! no period seen: the margin stays
+    p = margin_fractions*nl%skin
+    r2c = (nl%rc + p)**2
+    cnt = 0
+    !$omp parallel do schedule(static) reduction(+: cnt) private(k, j, r2, c) &
+    !$omp& if (n >= par_min_loop)
+    do i = 1, n
+      do k = nl%start(i), nl%start(i + 1) - 1
+        j = nl%nbr(k)
+        r2 = (x(i) - x(j))**2 + (y(i) - y(j))**2
+        do c = 1, n_margins
+          cnt(c) = cnt(c) + merge(1_i8, 0_i8, r2 < r2c(c))
+        end do
+      end do
+    end do
+    !$omp end parallel do
+    a = 1
+    if (m1 > 1) a = min(2.0_dp, max(1.0_dp, log(m1)/log(nl%skin/nl%prune)))
+    work = s_len*real(cnt, dp) + prune_cost*real(nl%pairs + n, dp)*max(1.0_dp, m1*(nl%prune/p)**a)
+    c = minloc(work, 1)
+    if (p(c) /= nl%prune) nl%margin_changes = nl%margin_changes + 1
+    nl%prune = p(c)
+  end subroutine nlist_margin
+
+  !> run.json's "pruned_list" member (a line, ending in a comma): the margin in use at the end
+  !> [length], whether it was chosen automatically, how often the choice changed, the prunes,
+  !> the pairs in the pruned list at the end.
+  function nlist_prune_json(nl) result(text)
+    type(nlist_t), intent(in) :: nl
+    character(len=:), allocatable :: text
+    text = '  "pruned_list": {"margin": '//json_real(nl%prune)//', "automatic": '// &
+         trim(merge('true ', 'false', nl%prune_auto))//', "margin_changes": '// &
+         int_str(nl%margin_changes)//', "prunes": '//int_str(nl%prunes)//', "pairs": '// &
+         int_str(nl%ppairs)//'},'//achar(10)
+  end function nlist_prune_json
 
   !> Whether a force pass may use the pruned list now (see nlist_t).
   pure logical function nlist_pruned(nl) result(yes)
