@@ -15,7 +15,8 @@ module api
   use pair_forces, only: dipole_kernel, dipole_eval, lj_chunk, lj_law, lj_law_t, lj_kernel, &
        pair_table_t, split_t
   use pair_eval, only: dipole_eval_build, lj_eval_build
-  use neighbours, only: nlist_due, nlist_prune_holds
+  use neighbours, only: nlist_due
+  use nlist_upkeep, only: nlist_prune_holds
   use integrators, only: estimate_velocity, finish_velocity
   implicit none
   private

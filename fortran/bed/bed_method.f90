@@ -13,7 +13,7 @@ module bed_method
   use engine, only: sim_t, sim_load, sim_step, pairs_per_step, sim_note_mu
   use protocol, only: phase_names
   use scene, only: scene_keys
-  use neighbours, only: nlist_prune_json
+  use nlist_upkeep, only: nlist_prune_json
   use pair_table, only: table_json
   use schema, only: schema_t
   use output, only: output_declare

@@ -19,8 +19,8 @@ module engine
   use pair_table, only: eval_code, eval_exact, eval_table
   use scene_input, only: real_str, int_str
   use parallel, only: init_threads, par_min_loop, my_share
-  use neighbours, only: nlist_t, nlist_setup, nlist_refresh, nlist_pruned, nlist_set_prune, &
-       nb_all_pairs, nb_verlet
+  use neighbours, only: nlist_t, nlist_setup, nb_all_pairs, nb_verlet
+  use nlist_upkeep, only: nlist_refresh, nlist_pruned, nlist_set_prune
   use walls, only: wall_block, wall_energy, wall_chunk
   use friction, only: gravity_force, viscous_friction, dry_friction, friction_at_vn
   use integrators, only: estimate_velocity, finish_velocity, advance

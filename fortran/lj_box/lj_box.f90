@@ -23,9 +23,8 @@ module lj_box
   use schema, only: schema_t, max_steps_all
   use ckpt, only: ckpt_writer_t, ckpt_put, file_crc64
   use state, only: state_t, state_allocate
-  use neighbours, only: nlist_t, nlist_setup, nlist_refresh, nlist_owners, nlist_pruned, &
-       nlist_set_prune, nlist_prune_json, &
-       nb_all_pairs, nb_cells, nb_verlet
+  use neighbours, only: nlist_t, nlist_setup, nlist_owners, nb_all_pairs, nb_cells, nb_verlet
+  use nlist_upkeep, only: nlist_refresh, nlist_pruned, nlist_set_prune, nlist_prune_json
   use pair_forces, only: lj_law_t, lj_law, pair_forces_all, pair_forces_list, lj_energy, &
        pair_table_t, max_bits
   use pair_eval, only: lj_eval_build
