@@ -104,7 +104,8 @@ compare() {
       run.json)
         python3 - "$f" "$b/$name" <<'EOF' || fail=1
 import json, sys
-vol = {"run_id", "wall_time_s", "wall_time_per_step_s", "event_loop_cpu_seconds"}
+vol = {"run_id", "wall_time_s", "wall_time_per_step_s", "event_loop_cpu_seconds",
+       "pruned_list"}   # pruned_list: the automatic margin follows the run's own timing
 a, b = (json.load(open(p)) for p in sys.argv[1:3])
 a["scene"] = a["scene"].replace("/old/", "/new/")   # a resumed run names its own scene.nml
 a = {k: v for k, v in a.items() if k not in vol}

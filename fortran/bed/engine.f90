@@ -20,7 +20,8 @@ module engine
   use scene_input, only: real_str, int_str
   use parallel, only: init_threads, par_min_loop, my_share
   use neighbours, only: nlist_t, nlist_setup, nb_all_pairs, nb_verlet
-  use nlist_upkeep, only: nlist_refresh, nlist_pruned, nlist_set_prune
+  use nlist_upkeep, only: nlist_refresh, nlist_pruned, nlist_set_prune, nlist_force_start, &
+       nlist_force_done
   use walls, only: wall_block, wall_energy, wall_chunk
   use friction, only: gravity_force, viscous_friction, dry_friction, friction_at_vn
   use integrators, only: estimate_velocity, finish_velocity, advance
@@ -250,11 +251,13 @@ contains
       end if
       call init_forces(sim, m%tail_frozen)
       if (pruned) then
+        call nlist_force_start(nl)
         call pair_forces_list(s%n, s%x, s%y, s%mu, s%wsin, m%k_pair, m%r_cut**2, m%shift4, &
              nl%check, r3, nl%start, nl%nbr, s%fx, s%fy, s%s3, r2min, own=nl%own, &
              split=m%split, rstart=nl%rstart, rlo=nl%rlo, rhi=nl%rhi, tab=m%tab, &
              mu_one=sim%mu_one, pstart=nl%pstart, pnbr=nl%pnbr, pown=nl%pown, &
              rowmax=nl%rowmax)   ! (the ranges absent when not built: nlist_t ranges_from)
+        call nlist_force_done(nl)
       else if (nl%strategy == nb_verlet) then   ! (the ranges absent when not built)
         call pair_forces_list(s%n, s%x, s%y, s%mu, s%wsin, m%k_pair, m%r_cut**2, m%shift4, &
              nl%check, r3, nl%start, nl%nbr, s%fx, s%fy, s%s3, r2min, own=nl%own, &

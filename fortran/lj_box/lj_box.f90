@@ -24,7 +24,8 @@ module lj_box
   use ckpt, only: ckpt_writer_t, ckpt_put, file_crc64
   use state, only: state_t, state_allocate
   use neighbours, only: nlist_t, nlist_setup, nlist_owners, nb_all_pairs, nb_cells, nb_verlet
-  use nlist_upkeep, only: nlist_refresh, nlist_pruned, nlist_set_prune, nlist_prune_json
+  use nlist_upkeep, only: nlist_refresh, nlist_pruned, nlist_set_prune, nlist_prune_json, &
+       nlist_force_start, nlist_force_done
   use pair_forces, only: lj_law_t, lj_law, pair_forces_all, pair_forces_list, lj_energy, &
        pair_table_t, max_bits
   use pair_eval, only: lj_eval_build
@@ -575,10 +576,12 @@ contains
           ! the pruned list when there is one (nlist_t; the same bits as the whole list)
           call nlist_refresh(nl, s, nl%prune > 0)
           if (nlist_pruned(nl) .and. nl%prune > 0) then
+            call nlist_force_start(nl)
             call pair_forces_list(s%n, s%x, s%y, s%mu, s%wsin, 1.0_dp, self%r_cut**2, &
                  0.0_dp, .true., no_r3, nl%start, nl%nbr, s%fx, s%fy, s%s3, self%r2min, &
                  law=self%lj, own=nl%own, tab=self%ljtab, pstart=nl%pstart, pnbr=nl%pnbr, &
                  pown=nl%pown)
+            call nlist_force_done(nl)
           else
             call pair_forces_list(s%n, s%x, s%y, s%mu, s%wsin, 1.0_dp, self%r_cut**2, &
                  0.0_dp, .true., no_r3, nl%start, nl%nbr, s%fx, s%fy, s%s3, self%r2min, &

@@ -76,6 +76,13 @@ module neighbours
     !> prunes (not counting the one after the build) of the current build period, the changes
     logical :: prune_auto = .false.
     integer(i8) :: period_steps = 0, period_prunes = 0, margin_changes = 0
+    !> ... and the measured costs it weighs (automatic only): clock ticks spent in prunes and
+    !> their work (listed pairs + particles), in the timed force passes over the pruned list
+    !> and their pruned pairs (nlist_upkeep nlist_force_start / nlist_force_done)
+    integer(i8) :: prune_ticks = 0, prune_work = 0, force_ticks = 0, force_pairs = 0
+    integer(i8) :: force_t0 = 0
+    real(dp) :: margin_sum = 0             !< the margin summed over the passes that wanted it
+    integer(i8) :: margin_passes = 0       !< ... and their number
     logical :: valid = .false.             !< a list exists for the current ordering
     integer(i8) :: builds = 0              !< number of list builds
     integer(i8) :: pairs = 0               !< pairs in the current list

@@ -13,13 +13,15 @@ module nlist_upkeep
   private
 
   public :: nlist_refresh, nlist_pruned, nlist_prune_holds, nlist_set_prune, nlist_prune_json
+  public :: nlist_force_start, nlist_force_done
 
   !> The automatic margin of the pruned list (nlist_set_prune, a scene's prune_skin < 0): the
   !> candidates as fractions of the skin, the first period's margin (narrow: its many prunes
   !> measure the motion), and what a prune costs per listed pair (plus one per particle)
-  !> against what a force pass costs per pruned pair (prune_rows ~2 ns a listed pair, rows_kept
-  !> 3-5 ns a pruned pair, bench/RESULTS.md 42.3; with 0.5 the model's work per margin follows
-  !> the measured step at N 2e3, r_c 3 and 4: section 43)
+  !> against what a force pass costs per pruned pair until both have been timed (prune_rows
+  !> ~2 ns a listed pair, rows_kept 3-5 ns a pruned pair, bench/RESULTS.md 42.3; the ratio
+  !> differs by kernel: the standard cycle's friction and far field make its pairs dearer,
+  !> section 43)
   integer, parameter :: n_margins = 5
   real(dp), parameter :: margin_fractions(n_margins) = [0.05_dp, 0.1_dp, 0.15_dp, 0.25_dp, 0.4_dp]
   real(dp), parameter :: margin_start = 0.1_dp, prune_cost = 0.5_dp
@@ -41,10 +43,15 @@ contains
     integer :: k
     logical :: want, keep, period
     real(dp) :: db2, dp2
+    integer(i8) :: t0, t1
     want = .false.
     if (present(prune)) want = prune
     want = want .and. nl%prune > 0 .and. nl%strategy == nb_verlet .and. nl%check
-    if (want) nl%period_steps = nl%period_steps + 1
+    if (want) then
+      nl%period_steps = nl%period_steps + 1
+      nl%margin_sum = nl%margin_sum + nl%prune
+      nl%margin_passes = nl%margin_passes + 1
+    end if
     keep = .false.   ! the pruned list holds
     if (want) then
       keep = nlist_prune_holds(nl, s%n, s%x, s%y, dp2)
@@ -66,7 +73,15 @@ contains
     else if (want .and. .not. keep) then
       nl%period_prunes = nl%period_prunes + 1
     end if
-    if (want .and. .not. keep) call nlist_prune(nl, s%n, s%x, s%y, sqrt(db2))
+    if (want .and. .not. keep) then
+      if (nl%prune_auto) call system_clock(t0)
+      call nlist_prune(nl, s%n, s%x, s%y, sqrt(db2))
+      if (nl%prune_auto) then
+        call system_clock(t1)
+        nl%prune_ticks = nl%prune_ticks + (t1 - t0)
+        nl%prune_work = nl%prune_work + (nl%start(s%n + 1) - 1) + s%n
+      end if
+    end if
   contains
     subroutine rebuild()
     call nlist_bin(nl, s%n, s%x, s%y)
@@ -108,24 +123,32 @@ contains
     nl%period_steps = 0
     nl%period_prunes = 0
     nl%margin_changes = 0
+    nl%prune_ticks = 0
+    nl%prune_work = 0
+    nl%force_ticks = 0
+    nl%force_pairs = 0
+    nl%margin_sum = 0
+    nl%margin_passes = 0
   end subroutine nlist_set_prune
 
   !> The automatic margin, chosen at a build from the list just built at x, y and the build
   !> period that ended: the one of the candidates p (margin_fractions of the skin) with the
-  !> least work per period, S P(p) + prune_cost (pairs + n) M(p): P(p) the listed pairs within
-  !> r_c + p now (what the force passes take), M(p) the prunes of a period (a prune comes when
-  !> a particle moved p/2, a build when it moved skin/2). The period that ended had S force
-  !> passes and m + 1 prunes at margin p0, so M(p0) = m + 1 and M(skin) = 1; between them and
-  !> beyond, M(p) = (m + 1) (p0/p)^a with a = ln(m + 1)/ln(skin/p0) clipped to [1, 2]
-  !> (ballistic 1 .. diffusive 2), and at least 1. Integer counts and step numbers only: the
-  !> same choice for any thread count; the forces are the same bits at any margin anyway.
+  !> least work per period, S P(p) + c (pairs + n) M(p): P(p) the listed pairs within r_c + p
+  !> now (what the force passes take), M(p) the prunes of a period (a prune comes when a
+  !> particle moved p/2, a build when it moved skin/2), c the measured cost of a prune per
+  !> listed pair and particle over that of a force pass per pruned pair (the run's totals so
+  !> far; prune_cost until both were timed). The period that ended had S force passes and
+  !> m + 1 prunes at margin p0, so M(p0) = m + 1 and M(skin) = 1; between them and beyond,
+  !> M(p) = (m + 1) (p0/p)^a with a = ln(m + 1)/ln(skin/p0) clipped to [1, 2] (ballistic 1 ..
+  !> diffusive 2), and at least 1. c is timed, so the choices may differ between runs (as
+  !> GROMACS' tuning of its PME grid does); the forces are the same bits at any margin.
   subroutine nlist_margin(nl, n, x, y, period)
     type(nlist_t), intent(inout) :: nl
     integer, intent(in) :: n
     real(dp), intent(in) :: x(n), y(n)
     logical, intent(in) :: period   !< a build period ended (false: the first build, a restart)
     integer(i8) :: cnt(n_margins)
-    real(dp) :: p(n_margins), r2c(n_margins), work(n_margins), r2, m1, a, s_len
+    real(dp) :: p(n_margins), r2c(n_margins), work(n_margins), r2, m1, a, s_len, ratio
     integer :: i, k, j, c
     s_len = real(nl%period_steps, dp)
     m1 = real(nl%period_prunes + 1, dp)
@@ -149,20 +172,49 @@ contains
     !$omp end parallel do
     a = 1
     if (m1 > 1) a = min(2.0_dp, max(1.0_dp, log(m1)/log(nl%skin/nl%prune)))
-    work = s_len*real(cnt, dp) + prune_cost*real(nl%pairs + n, dp)*max(1.0_dp, m1*(nl%prune/p)**a)
+    ratio = prune_cost   ! a prune's cost per unit of work / a force pass's per pruned pair
+    if (nl%prune_ticks > 0 .and. nl%prune_work > 0 .and. nl%force_ticks > 0 .and. &
+        nl%force_pairs > 0) ratio = (real(nl%prune_ticks, dp)/real(nl%prune_work, dp))/ &
+        (real(nl%force_ticks, dp)/real(nl%force_pairs, dp))
+    work = s_len*real(cnt, dp) + ratio*real(nl%pairs + n, dp)*max(1.0_dp, m1*(nl%prune/p)**a)
     c = minloc(work, 1)
     if (p(c) /= nl%prune) nl%margin_changes = nl%margin_changes + 1
     nl%prune = p(c)
   end subroutine nlist_margin
 
+  !> Around a force pass over the pruned list (automatic margin only, else nothing): its clock
+  !> ticks and pruned pairs, for nlist_margin's cost ratio.
+  subroutine nlist_force_start(nl)
+    type(nlist_t), intent(inout) :: nl
+    if (nl%prune_auto) call system_clock(nl%force_t0)
+  end subroutine nlist_force_start
+
+  subroutine nlist_force_done(nl)
+    type(nlist_t), intent(inout) :: nl
+    integer(i8) :: t1
+    if (.not. nl%prune_auto) return
+    call system_clock(t1)
+    nl%force_ticks = nl%force_ticks + (t1 - nl%force_t0)
+    nl%force_pairs = nl%force_pairs + nl%ppairs
+  end subroutine nlist_force_done
+
   !> run.json's "pruned_list" member (a line, ending in a comma): the margin in use at the end
-  !> [length], whether it was chosen automatically, how often the choice changed, the prunes,
-  !> the pairs in the pruned list at the end.
+  !> and its mean over the force passes that took the pruned list [length], whether it was
+  !> chosen automatically, the measured cost ratio c of nlist_margin
+  !> (0: not timed), how often the choice changed, the prunes, the pairs in the pruned list at
+  !> the end.
   function nlist_prune_json(nl) result(text)
     type(nlist_t), intent(in) :: nl
     character(len=:), allocatable :: text
-    text = '  "pruned_list": {"margin": '//json_real(nl%prune)//', "automatic": '// &
-         trim(merge('true ', 'false', nl%prune_auto))//', "margin_changes": '// &
+    real(dp) :: ratio
+    ratio = 0
+    if (nl%prune_work > 0 .and. nl%force_pairs > 0 .and. nl%force_ticks > 0) ratio = &
+         (real(nl%prune_ticks, dp)/real(nl%prune_work, dp))/ &
+         (real(nl%force_ticks, dp)/real(nl%force_pairs, dp))
+    text = '  "pruned_list": {"margin": '//json_real(nl%prune)//', "margin_mean": '// &
+         json_real(nl%margin_sum/real(max(1_i8, nl%margin_passes), dp))//', "automatic": '// &
+         trim(merge('true ', 'false', nl%prune_auto))//', "cost_ratio": '//json_real(ratio)// &
+         ', "margin_changes": '// &
          int_str(nl%margin_changes)//', "prunes": '//int_str(nl%prunes)//', "pairs": '// &
          int_str(nl%ppairs)//'},'//achar(10)
   end function nlist_prune_json
