@@ -63,7 +63,7 @@ module scene
     real(dp) :: dt = 2.0e-3_dp           !< time step [T]
     real(dp) :: r_cut = 7.13_dp          !< pair cut-off r_c [D1] (truncated strategies)
     real(dp) :: skin = 1.0_dp            !< Verlet skin r_v - r_c [D1]
-    !> margin of the pruned list over r_c [D1] (verlet): < 0 automatic (neighbours nlist_margin), 0 none
+    !> margin of the pruned list over r_c [D1] (verlet): < 0 automatic (nlist_upkeep nlist_margin), 0 none
     real(dp) :: prune_skin = -1.0_dp
     character(len=name_len) :: truncation = 'plain'  !< | 'shifted_force'
     character(len=name_len) :: tail = 'none'         !< | 'frozen' (far field every tail_every steps)
