@@ -297,7 +297,8 @@ contains
   end subroutine far_field
 
   !> fx, fy, s3 = the far field (far: frozen, or extrapolated linearly from its last two
-  !> evaluations for tail = 'linear') or 0; serial below par_min_loop particles.
+  !> evaluations for tail = 'linear') or 0; serial below par_min_loop particles. s3 (the
+  !> friction's r^-3 sums) only with dry friction: without, they stay 0.
   subroutine init_forces(sim, far)
     type(sim_t), intent(inout) :: sim
     logical, intent(in) :: far
@@ -318,20 +319,22 @@ contains
     subroutine init_range(lo, hi)
       integer, intent(in) :: lo, hi
       real(dp) :: a
+      logical :: r3
       associate (s => sim%s)
+        r3 = sim%m%dry_order > 0   ! else nothing adds to s3 (friction weighs it by 0): 0 from state_allocate
         if (far .and. sim%m%tail_linear) then
           a = real(s%step - s%tail_step, dp)
           s%fx(lo:hi) = s%fx_far(lo:hi) + a*s%dfx_far(lo:hi)
           s%fy(lo:hi) = s%fy_far(lo:hi) + a*s%dfy_far(lo:hi)
-          s%s3(lo:hi) = s%s3_far(lo:hi) + a*s%ds3_far(lo:hi)
+          if (r3) s%s3(lo:hi) = s%s3_far(lo:hi) + a*s%ds3_far(lo:hi)
         else if (far) then
           s%fx(lo:hi) = s%fx_far(lo:hi)
           s%fy(lo:hi) = s%fy_far(lo:hi)
-          s%s3(lo:hi) = s%s3_far(lo:hi)
+          if (r3) s%s3(lo:hi) = s%s3_far(lo:hi)
         else
           s%fx(lo:hi) = 0
           s%fy(lo:hi) = 0
-          s%s3(lo:hi) = 0
+          if (r3) s%s3(lo:hi) = 0
         end if
       end associate
     end subroutine init_range
