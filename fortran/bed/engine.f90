@@ -143,6 +143,10 @@ contains
       return
     end if
     sim%need_velocity = sim%m%dry_order > 0 .or. sim%m%viscous_on
+    ! the optional arrays this scene writes (the others stay 0: not permuted at list builds)
+    sim%s%with_s3 = sim%m%dry_order > 0
+    sim%s%with_far = sim%m%tail_frozen
+    sim%s%with_far_slope = sim%m%tail_linear
     if (sim%m%piston_mode == piston_free) then
       call state_allocate(sim%pst, 1)
       sim%pst%x = 0

@@ -35,6 +35,10 @@ module state
     integer(i8) :: nudge_step = -1         !< free piston state: step of the nudge (-1: not yet)
     real(dp) :: calm_since = -1            !< free piston state: settling criterion holds since [T] (-1: not)
     logical :: has_previous = .false.      !< xp, yp valid
+    !> which optional arrays hold values in this run (a kind switches off those it never
+    !> writes: they stay 0 and state_permute leaves them alone): s3 and its far-field parts;
+    !> fx_far, fy_far (+ s3_far); dfx_far, dfy_far (+ ds3_far)
+    logical :: with_s3 = .true., with_far = .true., with_far_slope = .true.
     logical :: tail_ready = .false.        !< fx_far, fy_far, s3_far computed
     integer(i8) :: tail_step = 0           !< step of their last evaluation
   end type state_t
@@ -58,15 +62,23 @@ contains
     s%id = [(i, i = 1, n)]
   end subroutine state_allocate
 
-  !> Reorder every per-particle array: new index k holds old particle perm(k).
+  !> Reorder every per-particle array: new index k holds old particle perm(k) (but for the
+  !> optional ones switched off: with_s3, with_far, with_far_slope).
   subroutine state_permute(s, perm)
     type(state_t), intent(inout) :: s
     integer, intent(in) :: perm(:)
     s%x = s%x(perm); s%y = s%y(perm); s%vx = s%vx(perm); s%vy = s%vy(perm)
     s%xp = s%xp(perm); s%yp = s%yp(perm); s%fx = s%fx(perm); s%fy = s%fy(perm)
-    s%fmag = s%fmag(perm); s%s3 = s%s3(perm); s%fmx = s%fmx(perm); s%fmy = s%fmy(perm)
-    s%fx_far = s%fx_far(perm); s%fy_far = s%fy_far(perm); s%s3_far = s%s3_far(perm)
-    s%dfx_far = s%dfx_far(perm); s%dfy_far = s%dfy_far(perm); s%ds3_far = s%ds3_far(perm)
+    s%fmag = s%fmag(perm); s%fmx = s%fmx(perm); s%fmy = s%fmy(perm)
+    if (s%with_s3) s%s3 = s%s3(perm)
+    if (s%with_far) then
+      s%fx_far = s%fx_far(perm); s%fy_far = s%fy_far(perm)
+      if (s%with_s3) s%s3_far = s%s3_far(perm)
+    end if
+    if (s%with_far_slope) then
+      s%dfx_far = s%dfx_far(perm); s%dfy_far = s%dfy_far(perm)
+      if (s%with_s3) s%ds3_far = s%ds3_far(perm)
+    end if
     s%id = s%id(perm); s%species = s%species(perm); s%mass = s%mass(perm)
     s%mu = s%mu(perm); s%wsin = s%wsin(perm); s%nfac = s%nfac(perm)
   end subroutine state_permute
