@@ -155,6 +155,7 @@ def main() -> int:
                     help=f"keys of SETTINGS ({', '.join(SETTINGS)}) or scene files")
     ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3])
     ap.add_argument("--tag", default="", help="results: cycle_speed[_TAG][_rows].csv")
+    ap.add_argument("--dir", default="", help="results in bench/results/DIR/ (default: there)")
     args = ap.parse_args()
     print(common.machine_line())
     rows = []
@@ -168,16 +169,17 @@ def main() -> int:
                                                          tmp / f"run{i}_{seed}")}
                 print(json.dumps(row), flush=True)
                 rows.append(row)
-            save(rows, args.tag)   # after every round: a stopped job keeps its rounds
+            save(rows, args.tag, args.dir)   # after every round: a stopped job keeps its rounds
     return 0
 
 
-def save(rows: list[dict[str, Any]], tag: str) -> None:
-    """The rows and their summary to bench/results/cycle_speed[_TAG][_rows].csv."""
+def save(rows: list[dict[str, Any]], tag: str, folder: str = "") -> None:
+    """The rows and their summary to bench/results/[FOLDER/]cycle_speed[_TAG][_rows].csv."""
     suffix = f"_{tag}" if tag else ""
+    prefix = f"{folder}/" if folder else ""
     frame = pd.DataFrame(rows)
-    common.save_table(frame, f"cycle_speed{suffix}_rows.csv")
-    common.save_table(summary(frame), f"cycle_speed{suffix}.csv")
+    common.save_table(frame, f"{prefix}cycle_speed{suffix}_rows.csv")
+    common.save_table(summary(frame), f"{prefix}cycle_speed{suffix}.csv")
 
 
 if __name__ == "__main__":
