@@ -148,7 +148,10 @@ def setup_subtracted(a_exe: str, b_exe: str, one_step: Path, s_steps: Path, step
     """Per-step cost of A and B with the set-up removed, (cost of S steps - cost of 1) / (S - 1):
     CPU seconds (or instructions, ``count``: callgrind, one repeat), the runs of a repeat
     interleaved A, B, A, B; the medians and the median and spread of B's speed-up (A cost / B
-    cost; > 1: B cheaper) over the repeats."""
+    cost; > 1: B cheaper) over the repeats, and the ratio of the two engines' least per-step
+    costs (B_speed_of_minima: load from other work only adds time, so each engine's fastest
+    repeat is its least disturbed one; on a VM whose speed drifts within a repeat it is steadier
+    than the median of paired ratios, bench/RESULTS.md 44)."""
     one_step, s_steps = without_keys(one_step, DROP_KEYS), without_keys(s_steps, DROP_KEYS)
     per: dict[str, list[float]] = {"a": [], "b": []}
     for k in range(1 if count else repeat):
@@ -164,7 +167,8 @@ def setup_subtracted(a_exe: str, b_exe: str, one_step: Path, s_steps: Path, step
     return {"A_per_step_median": statistics.median(per["a"]),
             "B_per_step_median": statistics.median(per["b"]),
             "B_speed_median": statistics.median(speed), "B_speed_min": min(speed),
-            "B_speed_max": max(speed), "repeats": len(speed)}
+            "B_speed_max": max(speed), "B_speed_of_minima": min(per["a"]) / min(per["b"]),
+            "repeats": len(speed)}
 
 
 def grid_scenes(point: str, evaluation: str, tmp: Path) -> tuple[Path, Path, int]:
@@ -193,7 +197,8 @@ def grid_rows(a_exe: str, b_exe: str, points: list[str], evaluations: list[str],
             rows.append({"point": point, "pair_eval": ev, "steps": steps,
                          "A_median_cpu_us_per_step": 1e6 * r["A_per_step_median"],
                          "B_median_cpu_us_per_step": 1e6 * r["B_per_step_median"],
-                         **{k: r[k] for k in ("B_speed_median", "B_speed_min", "B_speed_max")},
+                         **{k: r[k] for k in ("B_speed_median", "B_speed_min", "B_speed_max",
+                                              "B_speed_of_minima")},
                          "repeats": repeat, "machine": common.machine_line()})
     return rows
 
@@ -221,7 +226,8 @@ def lj_rows(a_exe: str, b_exe: str, ns: list[int], steps: int, repeat: int, coun
         rows.append({"N": n, f"A_{unit}_per_step_median": r["A_per_step_median"],
                      f"B_{unit}_per_step_median": r["B_per_step_median"],
                      "B_speedup_median": r["B_speed_median"], "B_speedup_min": r["B_speed_min"],
-                     "B_speedup_max": r["B_speed_max"], "steps": steps,
+                     "B_speedup_max": r["B_speed_max"],
+                     "B_speedup_of_minima": r["B_speed_of_minima"], "steps": steps,
                      "repeats": r["repeats"]})
         print(rows[-1], flush=True)
     return rows

@@ -57,3 +57,29 @@ def test_prune_sweep_refuses_a_sweep_without_its_reference(capsys):
     assert prune_sweep.main(["--margins", "0.25", "0.5"]) == 2
     assert prune_sweep.main(["--margins", "0", "1.0"]) == 2
     assert "--margins" in capsys.readouterr().err
+
+
+def test_ab_engines_setup_subtracted_medians_and_ratio_of_minima(tmp_path, monkeypatch):
+    """setup_subtracted: per-step cost (cost_S - cost_1) / (S - 1) per engine and repeat; the
+    median of the paired ratios and the ratio of each engine's least per-step cost. Repeats
+    with load added to one engine (a drifting VM) move the median of pairs, not the minima."""
+    import ab_engines
+    setup, steps = 0.5, 101
+    step = {"A": [1.0, 1.0, 1.6], "B": [0.8, 1.4, 0.8]}   # per-step cost per repeat [ms]
+    calls = {"A": 0, "B": 0}
+
+    def fake_one(exe, scene, out):
+        s = steps if scene.name == "S.nml" else 1
+        k = calls[exe] // 2     # each repeat runs S then 1 step per engine
+        calls[exe] += 1
+        return 0.0, (setup + s * step[exe][k] * 1e-3) / s
+
+    monkeypatch.setattr(ab_engines, "one", fake_one)
+    monkeypatch.setattr(ab_engines, "DROP_KEYS", [])
+    r = ab_engines.setup_subtracted("A", "B", tmp_path / "1.nml", tmp_path / "S.nml", steps, 3,
+                                    False, tmp_path)
+    assert r["A_per_step_median"] == pytest.approx(1.0e-3)
+    assert r["B_per_step_median"] == pytest.approx(0.8e-3)
+    assert r["B_speed_median"] == pytest.approx(1.25)            # pairs: 1.25, 0.714, 2.0
+    assert (r["B_speed_min"], r["B_speed_max"]) == pytest.approx((1.0 / 1.4, 2.0))
+    assert r["B_speed_of_minima"] == pytest.approx(1.0 / 0.8)
