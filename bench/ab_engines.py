@@ -150,8 +150,8 @@ def setup_subtracted(a_exe: str, b_exe: str, one_step: Path, s_steps: Path, step
     interleaved A, B, A, B; the medians and the median and spread of B's speed-up (A cost / B
     cost; > 1: B cheaper) over the repeats, and the ratio of the two engines' least per-step
     costs (B_speed_of_minima: load from other work only adds time, so each engine's fastest
-    repeat is its least disturbed one; on a VM whose speed drifts within a repeat it is steadier
-    than the median of paired ratios, bench/RESULTS.md 44)."""
+    repeat is its least disturbed one; a second estimator beside the paired median, not a
+    steadier one on every VM: bench/RESULTS.md 44.1)."""
     one_step, s_steps = without_keys(one_step, DROP_KEYS), without_keys(s_steps, DROP_KEYS)
     per: dict[str, list[float]] = {"a": [], "b": []}
     for k in range(1 if count else repeat):
