@@ -2,6 +2,7 @@
 (or their CSVs read) and every goal point printed as met or short, with its margin.
 
     OMP_NUM_THREADS=1 .venv/bin/python bench/speed_goals.py --tag s44        # ~35 min
+    OMP_NUM_THREADS=1 .venv/bin/python bench/speed_goals.py --quick --tag /tmp/q   # ~1 min smoke
     .venv/bin/python bench/speed_goals.py --read --grid-csv s43/grid_final.csv \\
         --lj-csv s42/lj_lammps_final.csv --cycle-csv s43/cycle_speed_s43fast.csv   # no runs
 
@@ -109,6 +110,9 @@ def main() -> int:
     ap.add_argument("--repeat", type=int, default=3, help="repeats of each peer comparison")
     ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3], help="cycle rounds")
     ap.add_argument("--read", action="store_true", help="read the CSVs, run nothing")
+    ap.add_argument("--quick", action="store_true",
+                    help="a smoke run of the whole chain (~2 min): the grid at N 2e3 r_c 3, the "
+                    "LJ box at N 2e3 for 2 000 steps, one repeat, one cycle seed; no verdict")
     ap.add_argument("--grid-csv", help="bench/results/ path of a lammps_compare --grid CSV")
     ap.add_argument("--lj-csv", help="bench/results/ path of a lj_lammps CSV")
     ap.add_argument("--cycle-csv", help="bench/results/ path of a cycle_speed summary CSV")
@@ -126,12 +130,16 @@ def main() -> int:
             print(f"error: the peer is missing: {exc}", file=sys.stderr)
             return 2
         py = sys.executable
-        run([py, "bench/lammps_compare.py", "--grid", "--repeat", str(a.repeat),
+        repeat = "1" if a.quick else str(a.repeat)
+        few_grid = ["--grid-n", "2000", "--grid-rc", "3"] if a.quick else []
+        few_lj = ["--n", "2000", "--steps", "2000"] if a.quick else []
+        seeds = [a.seeds[0]] if a.quick else a.seeds
+        run([py, "bench/lammps_compare.py", "--grid", "--repeat", repeat, *few_grid,
              "--pair-eval", "exact", "single", "--grid-csv", grid_csv])
-        run([py, "bench/lj_lammps.py", "--repeat", str(a.repeat), "--pair-eval", "exact",
+        run([py, "bench/lj_lammps.py", "--repeat", repeat, *few_lj, "--pair-eval", "exact",
              "single", "--csv", lj_csv])
         run([py, "bench/cycle_speed.py", "--settings", FAST_SCENE, "--seeds",
-             *map(str, a.seeds), "--dir", a.tag])
+             *map(str, seeds), "--dir", a.tag])
     missing = [p for p in (grid_csv, lj_csv, cycle_csv) if not (RESULTS / p).is_file()]
     if missing:
         print(f"error: no such CSV under bench/results: {', '.join(missing)}", file=sys.stderr)
@@ -139,12 +147,13 @@ def main() -> int:
     t = goal_table(pd.read_csv(RESULTS / grid_csv), pd.read_csv(RESULTS / lj_csv),
                    pd.read_csv(RESULTS / cycle_csv))
     t["machine"] = common.machine_line()
-    print(f"\n{common.machine_line()}\n{int(t['met'].sum())} of {len(t)} goal points met")
+    print(f"\n{common.machine_line()}\n{int(t['met'].sum())} of {len(t)} goal points met"
+          + (" (--quick: a smoke run, not a reading of the goals)" if a.quick else ""))
     print(t.drop(columns="machine").to_string(index=False, float_format=lambda v: f"{v:.3g}"))
     out = RESULTS / a.tag / "speed_goals.csv"
     out.parent.mkdir(parents=True, exist_ok=True)
     t.to_csv(out, index=False)
-    print(f"-> {out.relative_to(common.REPO)}")
+    print(f"-> {out}")
     return 0
 
 
