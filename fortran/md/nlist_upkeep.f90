@@ -172,10 +172,8 @@ contains
     !$omp end parallel do
     a = 1
     if (m1 > 1) a = min(2.0_dp, max(1.0_dp, log(m1)/log(nl%skin/nl%prune)))
-    ratio = prune_cost   ! a prune's cost per unit of work / a force pass's per pruned pair
-    if (nl%prune_ticks > 0 .and. nl%prune_work > 0 .and. nl%force_ticks > 0 .and. &
-        nl%force_pairs > 0) ratio = (real(nl%prune_ticks, dp)/real(nl%prune_work, dp))/ &
-        (real(nl%force_ticks, dp)/real(nl%force_pairs, dp))
+    ratio = cost_ratio(nl)   ! a prune's cost per unit of work / a force pass's per pruned pair
+    if (ratio <= 0) ratio = prune_cost
     work = s_len*real(cnt, dp) + ratio*real(nl%pairs + n, dp)*max(1.0_dp, m1*(nl%prune/p)**a)
     c = minloc(work, 1)
     if (p(c) /= nl%prune) nl%margin_changes = nl%margin_changes + 1
@@ -207,10 +205,7 @@ contains
     type(nlist_t), intent(in) :: nl
     character(len=:), allocatable :: text
     real(dp) :: ratio
-    ratio = 0
-    if (nl%prune_work > 0 .and. nl%force_pairs > 0 .and. nl%force_ticks > 0) ratio = &
-         (real(nl%prune_ticks, dp)/real(nl%prune_work, dp))/ &
-         (real(nl%force_ticks, dp)/real(nl%force_pairs, dp))
+    ratio = cost_ratio(nl)
     text = '  "pruned_list": {"margin": '//json_real(nl%prune)//', "margin_mean": '// &
          json_real(nl%margin_sum/real(max(1_i8, nl%margin_passes), dp))//', "automatic": '// &
          trim(merge('true ', 'false', nl%prune_auto))//', "cost_ratio": '//json_real(ratio)// &
@@ -218,6 +213,16 @@ contains
          int_str(nl%margin_changes)//', "prunes": '//int_str(nl%prunes)//', "pairs": '// &
          int_str(nl%ppairs)//'},'//achar(10)
   end function nlist_prune_json
+
+  !> The run's measured cost of a prune per listed pair and particle over that of a force pass
+  !> per pruned pair (clock ticks of both so far), 0 until both were timed.
+  pure real(dp) function cost_ratio(nl) result(ratio)
+    type(nlist_t), intent(in) :: nl
+    ratio = 0
+    if (nl%prune_ticks > 0 .and. nl%prune_work > 0 .and. nl%force_ticks > 0 .and. &
+        nl%force_pairs > 0) ratio = (real(nl%prune_ticks, dp)/real(nl%prune_work, dp))/ &
+        (real(nl%force_ticks, dp)/real(nl%force_pairs, dp))
+  end function cost_ratio
 
   !> Whether a force pass may use the pruned list now (see nlist_t).
   pure logical function nlist_pruned(nl) result(yes)
